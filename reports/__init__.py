@@ -1,0 +1,1 @@
+"""Reports: results -> CSV, one self-contained HTML page, VTU/PVD exports."""

@@ -1,0 +1,1 @@
+"""Scenarios: WHAT is simulated (scenario model, loader and validation, mesh catalogue, suites)."""

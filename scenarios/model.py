@@ -1,0 +1,139 @@
+"""The scenario data model: what is simulated, as plain frozen dataclasses.
+
+A scenario is data, not code. The loader (`scenarios.load`) builds these from TOML and validates every
+field; everything downstream (solvers, bench, reports) reads only these objects. Units are SI throughout:
+metres, seconds, kilograms, pascals. The world's up axis is +y and gravity defaults to (0, -9.81, 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Which tetrahedral mesh: a catalogue name with a resolution, or a path to any file meshio reads.
+
+    name: catalogue name (`cheese`, `sphere`, `block`, `beam`, ...) or None when `path` is given.
+    resolution: catalogue resolution label (`coarse`, `medium`, `fine`, or `coarse_alt` / `medium_alt` for the
+        independently generated second mesh used by remeshing checks).
+    path: a tet mesh file; relative paths are resolved against the scenario file's folder.
+    scale: uniform scale applied to the rest positions [-].
+    """
+
+    name: str | None = "cheese"
+    resolution: str = "coarse"
+    path: str | None = None
+    scale: float = 1.0
+
+    @property
+    def key(self) -> str:
+        """Short identity string, e.g. `cheese/coarse` or the file path."""
+        return self.path if self.path else f"{self.name}/{self.resolution}"
+
+
+@dataclass(frozen=True)
+class Material:
+    """Stable Neo-Hookean material: density [kg/m^3], Young's modulus [Pa], Poisson ratio [-] in (-1, 0.5)."""
+
+    density: float = 1000.0
+    youngs_modulus: float = 1.0e5
+    poisson_ratio: float = 0.3
+
+
+@dataclass(frozen=True)
+class Plane:
+    """The ground plane `n . x = d` (n unit, normalised by the loader) with Coulomb friction coefficient mu."""
+
+    normal: Vec3 = (0.0, 1.0, 0.0)
+    offset: float = 0.0
+    friction: float = 0.5
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Contact law and parameters, all per unit contact area (DESIGN.md section 5).
+
+    law: `penalty` (the paper's soft contact) or `barrier` (IPC log barrier).
+    stiffness: k_e [Pa/m], normal force per area per metre of penetration (penalty law).
+    damping: k_d [Pa s/m], normal force per area per m/s of approach speed while penetrating.
+    friction_stiffness: k_f [Pa s/m], tangential force per area per m/s of slip below the Coulomb limit.
+    barrier_distance: dhat [m], activation distance of the barrier law.
+    barrier_stiffness: kappa [Pa], barrier stiffness per unit area.
+    """
+
+    law: str = "penalty"
+    stiffness: float = 1.0e7
+    damping: float = 0.0
+    friction_stiffness: float = 1.0e6
+    barrier_distance: float = 1.0e-3
+    barrier_stiffness: float = 1.0e4
+
+
+@dataclass(frozen=True)
+class Initial:
+    """Initial placement and motion of the body.
+
+    clearance: gap [m] between the plane and the body's lowest point along the plane normal after rotation;
+        None keeps the mesh where it is (after rotation and translation).
+    rotation: XYZ Euler angles [degrees] applied about the rest centroid.
+    translation: rigid translation [m] applied after rotation (before placing by clearance).
+    velocity: initial linear velocity [m/s].
+    angular_velocity: initial angular velocity [rad/s] about the centroid.
+    squash: per-axis scale of the initial positions about the centroid (1 = undeformed; used by stress cases).
+    """
+
+    clearance: float | None = 0.0
+    rotation: Vec3 = (0.0, 0.0, 0.0)
+    translation: Vec3 = (0.0, 0.0, 0.0)
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    angular_velocity: Vec3 = (0.0, 0.0, 0.0)
+    squash: Vec3 = (1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class TimeSpec:
+    """Time stepping: step dt [s], duration [s], store a frame every `frame_every` steps."""
+
+    dt: float = 0.01
+    duration: float = 1.0
+    frame_every: int = 1
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps, round(duration / dt)."""
+        return int(round(self.duration / self.dt))
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Which terms of the incremental potential exist. Absent terms are not built and cost nothing."""
+
+    gravity: bool = True
+    elasticity: bool = True
+    contact: bool = True
+    friction: bool = True
+    damping: bool = False
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One simulation scene. `plane` is None for scenes without ground (no contact, no friction)."""
+
+    name: str
+    mesh: MeshSpec = field(default_factory=MeshSpec)
+    material: Material = field(default_factory=Material)
+    plane: Plane | None = field(default_factory=Plane)
+    contact: Contact = field(default_factory=Contact)
+    initial: Initial = field(default_factory=Initial)
+    time: TimeSpec = field(default_factory=TimeSpec)
+    effects: Effects = field(default_factory=Effects)
+    gravity: Vec3 = (0.0, -9.81, 0.0)
+    description: str = ""
+    tags: tuple[str, ...] = ()
+
+    def with_(self, **changes) -> "Scenario":
+        """A copy with top-level fields replaced."""
+        return replace(self, **changes)

@@ -1,0 +1,1 @@
+"""Solvers: HOW a scenario is simulated. One interface (Model / State / step), many solvers."""

@@ -1,0 +1,1 @@
+"""Full-space implicit FEM (backward Euler as energy minimisation, warp kernels, CPU and CUDA)."""

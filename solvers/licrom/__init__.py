@@ -1,0 +1,1 @@
+"""LiCROM reduced-order solver: neural-field subspace training (torch), cubature, online dynamics (taichi)."""

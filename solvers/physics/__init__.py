@@ -1,0 +1,1 @@
+"""The continuum model shared by every solver: pure numpy reference functions (SI units)."""

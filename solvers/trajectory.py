@@ -1,0 +1,89 @@
+"""Trajectories: what every solver produces and every metric reads.
+
+Stored as one `.npz` per run, written atomically (a temporary file renamed into place), so a run that dies
+never leaves a half-written trajectory behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class Trajectory:
+    """Stored frames of one simulation.
+
+    t: (F,) frame times [s].
+    x: (F, n, 3) vertex positions [m].
+    X: (n, 3) rest positions [m].
+    tets: (m, 4) vertex indices of the tetrahedra.
+    surface: (k, 3) boundary triangles (outward orientation).
+    v: (F, n, 3) vertex velocities [m/s], optional.
+    q: (F, r) latent coordinates of a reduced solver, optional.
+    meta: JSON-serialisable provenance (scenario name, solver, parameters, seeds).
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    X: np.ndarray
+    tets: np.ndarray
+    surface: np.ndarray
+    v: np.ndarray | None = None
+    q: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        """Number of stored frames F."""
+        return int(self.t.shape[0])
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write to `path` (.npz) atomically; returns the path."""
+        arrays = {"t": self.t, "x": self.x, "X": self.X, "tets": self.tets, "surface": self.surface}
+        if self.v is not None:
+            arrays["v"] = self.v
+        if self.q is not None:
+            arrays["q"] = self.q
+        arrays["meta"] = np.array(json.dumps(self.meta, sort_keys=True, default=str))
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez_compressed(f, **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Trajectory":
+        """Read a trajectory written by `save`."""
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"])) if "meta" in z else {}
+            return cls(
+                t=z["t"], x=z["x"], X=z["X"], tets=z["tets"], surface=z["surface"],
+                v=z["v"] if "v" in z else None, q=z["q"] if "q" in z else None, meta=meta,
+            )
+
+
+def write_json_atomic(path: str | os.PathLike, obj: object) -> Path:
+    """Write `obj` as indented JSON to `path` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(obj, f, indent=2, sort_keys=True, default=str)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
