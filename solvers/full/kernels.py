@@ -1,0 +1,332 @@
+"""Warp kernels of the full-space solver (float64, CPU and CUDA); each mirrors a numpy reference in
+`solvers.physics` and is tested against it.
+
+Hessians are accumulated into the values of a block-sparse (BSR, 3x3 blocks) matrix whose pattern is fixed
+by the mesh: `blockmap[16 e + 4 a + b]` is the block of the (tets[e, a], tets[e, b]) pair, `diag[i]` the
+diagonal block of vertex i. Scalars are summed into a one-element array with atomics.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+f64 = wp.float64
+
+
+@wp.func
+def snh_psi(F: wp.mat33d, mu: f64, lam: f64, alpha: f64) -> f64:
+    """Stable Neo-Hookean energy density Psi(F) [J/m^3]."""
+    ic = wp.ddot(F, F)
+    J = wp.determinant(F)
+    return f64(0.5) * mu * (ic - f64(3.0)) + f64(0.5) * lam * (J - alpha) * (J - alpha) - f64(0.5) * mu * wp.log(
+        f64(1.0) + ic
+    )
+
+
+@wp.func
+def cofactor(F: wp.mat33d) -> wp.mat33d:
+    """dJ/dF: columns f1 x f2, f2 x f0, f0 x f1."""
+    f0 = wp.vec3d(F[0, 0], F[1, 0], F[2, 0])
+    f1 = wp.vec3d(F[0, 1], F[1, 1], F[2, 1])
+    f2 = wp.vec3d(F[0, 2], F[1, 2], F[2, 2])
+    c0 = wp.cross(f1, f2)
+    c1 = wp.cross(f2, f0)
+    c2 = wp.cross(f0, f1)
+    return wp.mat33d(c0[0], c1[0], c2[0], c0[1], c1[1], c2[1], c0[2], c1[2], c2[2])
+
+
+@wp.func
+def deformation_gradient(x: wp.array(dtype=wp.vec3d), tet: wp.vec4i, Dm_inv: wp.mat33d) -> wp.mat33d:
+    """F = Ds Dm^-1 for one tet."""
+    x0 = x[tet[0]]
+    d1 = x[tet[1]] - x0
+    d2 = x[tet[2]] - x0
+    d3 = x[tet[3]] - x0
+    Ds = wp.mat33d(d1[0], d2[0], d3[0], d1[1], d2[1], d3[1], d1[2], d2[2], d3[2])
+    return Ds * Dm_inv
+
+
+@wp.func
+def shape_gradient(Dm_inv: wp.mat33d, a: int) -> wp.vec3d:
+    """g_a with F = sum_a x_a g_a^T: rows of Dm^-1 for a = 1..3, minus their sum for a = 0."""
+    if a == 0:
+        return -(Dm_inv[0] + Dm_inv[1] + Dm_inv[2])
+    return Dm_inv[a - 1]
+
+
+@wp.func
+def add_mode(blocks: wp.array(dtype=wp.mat33d), base: int, Q: wp.mat33d, lam_v: f64, Dm_inv: wp.mat33d):
+    """blocks[base + 4a + b] += lam_v (Q g_a)(Q g_b)^T for one eigen-matrix Q of dP/dF with eigenvalue lam_v."""
+    if lam_v > f64(0.0):
+        w0 = Q * shape_gradient(Dm_inv, 0)
+        w1 = Q * shape_gradient(Dm_inv, 1)
+        w2 = Q * shape_gradient(Dm_inv, 2)
+        w3 = Q * shape_gradient(Dm_inv, 3)
+        for a in range(4):
+            wa = w0
+            if a == 1:
+                wa = w1
+            elif a == 2:
+                wa = w2
+            elif a == 3:
+                wa = w3
+            wa = lam_v * wa
+            blocks[base + 4 * a + 0] += wp.outer(wa, w0)
+            blocks[base + 4 * a + 1] += wp.outer(wa, w1)
+            blocks[base + 4 * a + 2] += wp.outer(wa, w2)
+            blocks[base + 4 * a + 3] += wp.outer(wa, w3)
+
+
+@wp.kernel
+def elastic_energy_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    mu: f64,
+    lam: f64,
+    alpha: f64,
+    energy: wp.array(dtype=f64),
+):
+    """energy[0] += V_e Psi(F_e)."""
+    e = wp.tid()
+    F = deformation_gradient(x, tets[e], Dm_inv[e])
+    wp.atomic_add(energy, 0, vol[e] * snh_psi(F, mu, lam, alpha))
+
+
+@wp.kernel
+def elastic_gradient_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    mu: f64,
+    lam: f64,
+    alpha: f64,
+    grad: wp.array(dtype=wp.vec3d),
+):
+    """grad[x_a] += V_e P g_a with P = mu (1 - 1/(I_C + 1)) F + lam (J - alpha) cof(F)."""
+    e = wp.tid()
+    tet = tets[e]
+    Dmi = Dm_inv[e]
+    F = deformation_gradient(x, tet, Dmi)
+    ic = wp.ddot(F, F)
+    J = wp.determinant(F)
+    P = mu * (f64(1.0) - f64(1.0) / (ic + f64(1.0))) * F + lam * (J - alpha) * cofactor(F)
+    for a in range(4):
+        wp.atomic_add(grad, tet[a], vol[e] * (P * shape_gradient(Dmi, a)))
+
+
+@wp.kernel
+def elastic_hessian_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    mu: f64,
+    lam: f64,
+    alpha: f64,
+    blocks: wp.array(dtype=wp.mat33d),
+):
+    """Per-element projected Hessian blocks (16 per tet) from the analytic SNH eigensystem.
+
+    dP/dF = a I + b f f^T + d g g^T + c d2J/dF2 with a = mu (1 - 1/(I_C+1)), b = 2 mu/(I_C+1)^2, c = lam (J -
+    alpha), d = lam. In the (rotation) SVD frame F = U diag(s) V^T its eigen-matrices are: per index pair (i, j)
+    with k the third, a twist U (e_i e_j^T - e_j e_i^T) V^T / sqrt 2 (a + c s_k) and a flip with + (a - c s_k);
+    the three scaling modes U diag(w) V^T with w the eigenvectors of the 3x3 matrix
+    A_ij = a delta_ij + b s_i s_j + d g_i g_j + c s_k [i != j], g = (s1 s2, s0 s2, s0 s1).
+    Negative eigenvalues are dropped (PSD projection).
+    """
+    e = wp.tid()
+    tet = tets[e]
+    Dmi = Dm_inv[e]
+    F = deformation_gradient(x, tet, Dmi)
+    U = wp.mat33d()
+    s = wp.vec3d()
+    V = wp.mat33d()
+    wp.svd3(F, U, s, V)
+    if wp.determinant(U) < f64(0.0):
+        U = U * wp.mat33d(f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(-1.0))
+        s = wp.vec3d(s[0], s[1], -s[2])
+    if wp.determinant(V) < f64(0.0):
+        V = V * wp.mat33d(f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(-1.0))
+        s = wp.vec3d(s[0], s[1], -s[2])
+    ic = s[0] * s[0] + s[1] * s[1] + s[2] * s[2]
+    J = s[0] * s[1] * s[2]
+    ca = mu * (f64(1.0) - f64(1.0) / (ic + f64(1.0)))
+    cb = f64(2.0) * mu / ((ic + f64(1.0)) * (ic + f64(1.0)))
+    cc = lam * (J - alpha)
+    cd = lam
+    g = wp.vec3d(s[1] * s[2], s[0] * s[2], s[0] * s[1])
+    A = wp.mat33d()
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = cb * s[i] * s[j] + cd * g[i] * g[j]
+            if i == j:
+                A[i, j] = A[i, j] + ca
+            else:
+                A[i, j] = A[i, j] + cc * s[3 - i - j]
+    Qs = wp.mat33d()
+    ls = wp.vec3d()
+    wp.eig3(A, Qs, ls)
+    Vt = wp.transpose(V)
+    base = 16 * e
+    for m in range(3):
+        w = wp.vec3d(Qs[0, m], Qs[1, m], Qs[2, m])
+        add_mode(blocks, base, U * wp.diag(w) * Vt, vol[e] * ls[m], Dmi)
+    r = f64(0.7071067811865476)
+    for k in range(3):
+        i = (k + 1) % 3
+        j = (k + 2) % 3
+        E = wp.mat33d()
+        E[i, j] = r
+        E[j, i] = -r
+        add_mode(blocks, base, U * E * Vt, vol[e] * (ca + cc * s[k]), Dmi)
+        E[j, i] = r
+        add_mode(blocks, base, U * E * Vt, vol[e] * (ca - cc * s[k]), Dmi)
+
+
+@wp.kernel
+def scatter_blocks_kernel(
+    blocks: wp.array(dtype=wp.mat33d), blockmap: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.mat33d)
+):
+    """values[blockmap[k]] += blocks[k] (element blocks into the BSR matrix)."""
+    k = wp.tid()
+    wp.atomic_add(values, blockmap[k], blocks[k])
+
+
+@wp.kernel
+def inertia_gravity_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    x_hat: wp.array(dtype=wp.vec3d),
+    mass: wp.array(dtype=f64),
+    inv_h2: f64,
+    gravity: wp.vec3d,
+    diag: wp.array(dtype=wp.int32),
+    grad: wp.array(dtype=wp.vec3d),
+    values: wp.array(dtype=wp.mat33d),
+    energy: wp.array(dtype=f64),
+    mode: int,
+):
+    """Inertia 1/(2h^2)|x - x_hat|_M^2 plus gravity -m g.x; mode 0: energy, 1: gradient and Hessian."""
+    i = wp.tid()
+    d = x[i] - x_hat[i]
+    m = mass[i]
+    if mode == 0:
+        wp.atomic_add(energy, 0, f64(0.5) * inv_h2 * m * wp.dot(d, d) - m * wp.dot(gravity, x[i]))
+    else:
+        grad[i] = grad[i] + m * inv_h2 * d - m * gravity
+        values[diag[i]] = values[diag[i]] + m * inv_h2 * wp.identity(n=3, dtype=f64)
+
+
+@wp.kernel
+def penalty_contact_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    x_prev: wp.array(dtype=wp.vec3d),
+    points: wp.array(dtype=wp.int32),
+    area: wp.array(dtype=f64),
+    normal: wp.vec3d,
+    offset: f64,
+    ke: f64,
+    kd: f64,
+    h: f64,
+    diag: wp.array(dtype=wp.int32),
+    grad: wp.array(dtype=wp.vec3d),
+    values: wp.array(dtype=wp.mat33d),
+    energy: wp.array(dtype=f64),
+    mode: int,
+):
+    """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian."""
+    p = wp.tid()
+    i = points[p]
+    c = offset - wp.dot(normal, x[i])
+    if c <= f64(0.0):
+        return
+    vn = wp.min(f64(0.0), wp.dot(x[i] - x_prev[i], normal) / h)
+    A = area[p]
+    if mode == 0:
+        wp.atomic_add(energy, 0, A * (f64(0.5) * ke * c * c + f64(0.5) * h * kd * vn * vn))
+    else:
+        wp.atomic_add(grad, i, A * (-ke * c + kd * vn) * normal)
+        k = A * ke
+        if vn < f64(0.0):
+            k = k + A * kd / h
+        wp.atomic_add(values, diag[i], k * wp.outer(normal, normal))
+
+
+@wp.kernel
+def barrier_contact_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    points: wp.array(dtype=wp.int32),
+    area: wp.array(dtype=f64),
+    normal: wp.vec3d,
+    offset: f64,
+    kappa: f64,
+    dhat: f64,
+    diag: wp.array(dtype=wp.int32),
+    grad: wp.array(dtype=wp.vec3d),
+    values: wp.array(dtype=wp.mat33d),
+    energy: wp.array(dtype=f64),
+    mode: int,
+):
+    """IPC log barrier kappa A b(phi) (see solvers.physics.contact.barrier*); mode 0: energy, 1: grad + Hessian."""
+    p = wp.tid()
+    i = points[p]
+    d = wp.dot(normal, x[i]) - offset
+    if d >= dhat:
+        return
+    A = area[p]
+    if mode == 0:
+        if d <= f64(0.0):
+            wp.atomic_add(energy, 0, f64(1.0e300))
+        else:
+            wp.atomic_add(energy, 0, -kappa * A * (d - dhat) * (d - dhat) * wp.log(d / dhat))
+    else:
+        b1 = -f64(2.0) * (d - dhat) * wp.log(d / dhat) - (d - dhat) * (d - dhat) / d
+        b2 = -f64(2.0) * wp.log(d / dhat) - f64(4.0) * (d - dhat) / d + (d - dhat) * (d - dhat) / (d * d)
+        wp.atomic_add(grad, i, kappa * A * b1 * normal)
+        wp.atomic_add(values, diag[i], kappa * A * b2 * wp.outer(normal, normal))
+
+
+@wp.kernel
+def friction_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    x_prev: wp.array(dtype=wp.vec3d),
+    points: wp.array(dtype=wp.int32),
+    area: wp.array(dtype=f64),
+    fn: wp.array(dtype=f64),
+    normal: wp.vec3d,
+    mu: f64,
+    kf: f64,
+    h: f64,
+    diag: wp.array(dtype=wp.int32),
+    grad: wp.array(dtype=wp.vec3d),
+    values: wp.array(dtype=wp.mat33d),
+    energy: wp.array(dtype=f64),
+    mode: int,
+):
+    """Lagged friction potential A h mu f_n f0(|v_t|) (see solvers.physics.friction); mode 0 energy, 1 grad+H."""
+    p = wp.tid()
+    if fn[p] <= f64(0.0):
+        return
+    i = points[p]
+    v = (x[i] - x_prev[i]) / h
+    vt = v - wp.dot(v, normal) * normal
+    s = wp.length(vt)
+    A = area[p]
+    cap = mu * fn[p]
+    eps = cap / kf
+    T = wp.identity(n=3, dtype=f64) - wp.outer(normal, normal)
+    if mode == 0:
+        f0 = s - f64(0.5) * eps
+        if s < eps:
+            f0 = f64(0.5) * s * s / eps
+        wp.atomic_add(energy, 0, A * h * cap * f0)
+    else:
+        if s < eps:
+            wp.atomic_add(grad, i, A * kf * vt)
+            wp.atomic_add(values, diag[i], (A * kf / h) * T)
+        else:
+            t = vt / s
+            wp.atomic_add(grad, i, A * cap * t)
+            wp.atomic_add(values, diag[i], (A * cap / (h * s)) * (T - wp.outer(t, t)))

@@ -1,0 +1,290 @@
+"""Full-space backward Euler as energy minimisation, solved by Newton's method with warp kernels.
+
+Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
+the vertex positions x (n, 3), x_hat = x^n + h v^n (DESIGN.md section 4). Only the terms the scene calls for are
+built (`Model.terms`); an absent term launches no kernel. Newton directions come from the projected (PSD)
+Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E; the barrier
+law also caps the step so that no contact point crosses the plane. Convergence is measured in velocity units:
+|dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import warp as wp
+import warp.optim.linear as wpl
+import warp.sparse as wps
+
+from solvers.full import kernels as K
+from solvers.model import Model, State
+from solvers.physics.contact import barrier_pressure, normal_pressure
+from solvers.warp_runtime import init_warp
+
+
+@dataclass
+class StepStats:
+    """Per-step statistics: Newton iterations, final |dx|_inf/h [m/s], line-search halvings, wall time [s]."""
+
+    newton_iters: int
+    residual: float
+    line_search_halvings: int
+    converged: bool
+    wall_s: float
+    linear_iters: int = 0
+
+
+@dataclass(frozen=True)
+class NewtonSettings:
+    """Newton tolerances: tol is relative to L per second; linear `direct` (CPU SuperLU), `cg` or `auto`."""
+
+    tol: float = 1e-5
+    max_iter: int = 50
+    linear: str = "auto"
+    cg_tol: float = 1e-10
+    armijo: float = 1e-4
+    max_halvings: int = 40
+
+
+class BlockPattern:
+    """Fixed 3x3-block sparsity of the mesh: unique (row, col) vertex pairs of every tet plus the diagonal.
+
+    rows, cols: (nnzb,) block coordinates sorted row-major; offsets: (n+1,) CSR row pointers;
+    blockmap: (16 m,) block index of each element pair; diag: (n,) block index of each diagonal.
+    """
+
+    def __init__(self, tets: np.ndarray, n: int) -> None:
+        a = np.repeat(np.arange(4), 4)
+        b = np.tile(np.arange(4), 4)
+        keys = (tets[:, a].astype(np.int64) * n + tets[:, b]).ravel()
+        diag_keys = np.arange(n, dtype=np.int64) * (n + 1)
+        uniq, inverse = np.unique(np.concatenate([keys, diag_keys]), return_inverse=True)
+        self.rows = (uniq // n).astype(np.int32)
+        self.cols = (uniq % n).astype(np.int32)
+        self.offsets = np.searchsorted(self.rows, np.arange(n + 1)).astype(np.int32)
+        self.blockmap = inverse[: keys.size].astype(np.int32)
+        self.diag = inverse[keys.size:].astype(np.int32)
+        self.n = n
+
+    @property
+    def nnzb(self) -> int:
+        """Number of stored 3x3 blocks."""
+        return int(self.rows.size)
+
+    def to_scipy(self, values: np.ndarray) -> sp.csc_matrix:
+        """The (3n, 3n) matrix with block values (nnzb, 3, 3), as CSC for a direct factorisation."""
+        return sp.bsr_matrix((values, self.cols, self.offsets), shape=(3 * self.n, 3 * self.n)).tocsc()
+
+
+class FullSpaceSolver:
+    """Newton on the backward-Euler incremental potential, kernels on `device` (`cpu` or `cuda`)."""
+
+    name = "full"
+
+    def __init__(self, model: Model, device: str = "cpu", settings: NewtonSettings = NewtonSettings()) -> None:
+        init_warp()
+        self.model = model
+        self.device = wp.get_device(device)
+        self.settings = settings
+        linear = settings.linear
+        if linear == "auto":
+            linear = "direct" if self.device.is_cpu else "cg"
+        if linear not in ("direct", "cg"):
+            raise ValueError(f"solver.linear = {linear!r}: expected 'direct', 'cg' or 'auto'")
+        self.linear = linear
+        sc = model.scenario
+        self.law = sc.contact.law
+        d = self.device
+        self.pattern = BlockPattern(model.tets, model.n)
+        arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
+        self.tets = arr(model.tets.astype(np.int32), wp.vec4i)
+        self.Dm_inv = arr(model.Dm_inv, wp.mat33d)
+        self.vol = arr(model.vol, wp.float64)
+        self.mass = arr(model.mass, wp.float64)
+        self.points = arr(model.points.astype(np.int32), wp.int32)
+        self.area = arr(model.area, wp.float64)
+        self.blockmap = arr(self.pattern.blockmap, wp.int32)
+        self.diag = arr(self.pattern.diag, wp.int32)
+        self.x = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.x_trial = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.x_hat = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.x_prev = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.grad = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.values = wp.zeros(self.pattern.nnzb, dtype=wp.mat33d, device=d)
+        self.elem_blocks = wp.zeros(16 * model.tets.shape[0], dtype=wp.mat33d, device=d)
+        self.energy_buf = wp.zeros(1, dtype=wp.float64, device=d)
+        self.fn = wp.zeros(model.points.size, dtype=wp.float64, device=d)
+        self.alpha_snh = 1.0 + 0.75 * model.mu_snh / model.lam_snh
+        self.gravity = wp.vec3d(*(model.gravity if model.has("gravity") else np.zeros(3)))
+        if model.plane_normal is not None:
+            self.normal = wp.vec3d(*model.plane_normal)
+        if self.linear == "cg":
+            ones = np.broadcast_to(np.eye(3), (self.pattern.nnzb, 3, 3)).copy()
+            self.A = wps.bsr_from_triplets(
+                model.n, model.n, arr(self.pattern.rows, wp.int32), arr(self.pattern.cols, wp.int32),
+                arr(ones, wp.mat33d), prune_numerical_zeros=False)
+            assert np.array_equal(self.A.columns.numpy()[: self.pattern.nnzb], self.pattern.cols)
+            self.values = self.A.values
+            self.rhs = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+            self.dx = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+
+    # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
+    def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:
+        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x.
+
+        inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
+        """
+        m, d = self.model, self.device
+        wp.launch(K.inertia_gravity_kernel, m.n, device=d, inputs=[
+            x, self.x_hat, self.mass, 1.0 / h**2 if inertia else 0.0, self.gravity, self.diag, self.grad, self.values,
+            self.energy_buf, mode])
+        if m.has("elasticity"):
+            ins = [x, self.tets, self.Dm_inv, self.vol, m.mu_snh, m.lam_snh, self.alpha_snh]
+            if mode == 0:
+                wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [self.energy_buf])
+            else:
+                wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [self.grad])
+                self.elem_blocks.zero_()
+                wp.launch(K.elastic_hessian_kernel, m.tets.shape[0], device=d, inputs=ins + [self.elem_blocks])
+                wp.launch(K.scatter_blocks_kernel, self.elem_blocks.shape[0], device=d,
+                          inputs=[self.elem_blocks, self.blockmap, self.values])
+        if m.has("contact"):
+            c = m.scenario.contact
+            out = [self.diag, self.grad, self.values, self.energy_buf, mode]
+            if self.law == "penalty":
+                kd = c.damping if m.has("damping") else 0.0
+                wp.launch(K.penalty_contact_kernel, m.points.size, device=d, inputs=[
+                    x, self.x_prev, self.points, self.area, self.normal, m.plane_offset, c.stiffness, kd, h] + out)
+            else:
+                wp.launch(K.barrier_contact_kernel, m.points.size, device=d, inputs=[
+                    x, self.points, self.area, self.normal, m.plane_offset, c.barrier_stiffness,
+                    c.barrier_distance] + out)
+        if m.has("friction"):
+            wp.launch(K.friction_kernel, m.points.size, device=d, inputs=[
+                x, self.x_prev, self.points, self.area, self.fn, self.normal, m.scenario.plane.friction,
+                m.scenario.contact.friction_stiffness, h, self.diag, self.grad, self.values, self.energy_buf, mode])
+
+    def energy(self, x: wp.array, h: float, inertia: bool = True) -> float:
+        """E(x) [J] of the current step's incremental potential."""
+        self.energy_buf.zero_()
+        self._launch_terms(x, h, 0, inertia)
+        return float(self.energy_buf.numpy()[0])
+
+    def gradient_hessian(self, x: wp.array, h: float, inertia: bool = True) -> None:
+        """Fill self.grad (n,) vec3d [N] and self.values (nnzb,) 3x3 blocks [N/m] at x."""
+        self.grad.zero_()
+        self.values.zero_()
+        self._launch_terms(x, h, 1, inertia)
+
+    # ----- linear solve and line search ---------------------------------------------------------------
+    def _solve(self) -> tuple[np.ndarray, int]:
+        """Newton direction dx = -H^-1 grad, (n, 3), and the linear iteration count (0 for direct)."""
+        if self.linear == "direct":
+            H = self.pattern.to_scipy(self.values.numpy())
+            g = self.grad.numpy().ravel()
+            dx = spla.splu(H, permc_spec="MMD_AT_PLUS_A").solve(-g)
+            return dx.reshape(-1, 3), 0
+        wp.launch(_negate_kernel, self.model.n, device=self.device, inputs=[self.grad, self.rhs])
+        self.dx.zero_()
+        M = wpl.preconditioner(self.A, "block_jacobi_direct")
+        iters, _, _ = wpl.cg(self.A, self.rhs, self.dx, tol=self.settings.cg_tol, maxiter=10 * self.model.n * 3,
+                             M=M, use_cuda_graph=False)
+        return self.dx.numpy(), int(iters)
+
+    def _max_feasible_step(self, x: np.ndarray, dx: np.ndarray) -> float:
+        """Barrier law: largest alpha <= 1 keeping every contact point strictly above the plane (90% rule)."""
+        if not (self.model.has("contact") and self.law == "barrier"):
+            return 1.0
+        n, p = self.model.plane_normal, self.model.points
+        phi = x[p] @ n - self.model.plane_offset
+        rate = dx[p] @ n
+        approaching = rate < 0
+        if not approaching.any():
+            return 1.0
+        return float(min(1.0, 0.9 * np.min(phi[approaching] / -rate[approaching])))
+
+    # ----- one time step --------------------------------------------------------------------------------
+    def _lag_normal_pressure(self, state: State) -> None:
+        """Normal pressure at the start of the step (lagged friction, IPC), per contact point [Pa]."""
+        m, c = self.model, self.model.scenario.contact
+        xp, vp = state.x[m.points], state.v[m.points]
+        if self.law == "penalty":
+            kd = c.damping if m.has("damping") else 0.0
+            fn = normal_pressure(xp, vp, m.plane_normal, m.plane_offset, c.stiffness, kd)
+        else:
+            fn = barrier_pressure(xp, m.plane_normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance)
+        self.fn.assign(np.ascontiguousarray(fn))
+
+    def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
+        """Advance state_in by dt into state_out (backward Euler); returns the step's statistics."""
+        t0 = time.perf_counter()
+        s, m, h = self.settings, self.model, dt
+        x_hat = state_in.x + h * state_in.v
+        self.x_hat.assign(x_hat)
+        self.x_prev.assign(state_in.x)
+        if m.has("friction"):
+            self._lag_normal_pressure(state_in)
+        x = x_hat.copy()
+        if m.has("contact") and self.law == "barrier":
+            x = state_in.x.copy() + h * state_in.v * self._max_feasible_step(state_in.x, h * state_in.v)
+        self.x.assign(x)
+        E = self.energy(self.x, h)
+        tol_v = s.tol * m.L
+        halvings = lin_iters = 0
+        converged = False
+        residual = np.inf
+        it = 0
+        for it in range(1, s.max_iter + 1):
+            self.gradient_hessian(self.x, h)
+            dx, li = self._solve()
+            lin_iters += li
+            residual = float(np.abs(dx).max()) / h
+            if residual < tol_v:
+                x = x + self._max_feasible_step(x, dx) * dx
+                self.x.assign(x)
+                converged = True
+                break
+            g_dot = float(np.sum(self.grad.numpy() * dx))
+            alpha = self._max_feasible_step(x, dx)
+            while True:
+                self.x_trial.assign(x + alpha * dx)
+                E_new = self.energy(self.x_trial, h)
+                if np.isfinite(E_new) and E_new <= E + s.armijo * alpha * g_dot + 1e-12 * abs(E):
+                    break
+                alpha *= 0.5
+                halvings += 1
+                if alpha < 2.0 ** -s.max_halvings:
+                    break
+            x = x + alpha * dx
+            self.x.assign(x)
+            E = E_new
+        state_out.x = x
+        state_out.v = (x - state_in.x) / h
+        state_out.t = state_in.t + h
+        return StepStats(it, residual, halvings, converged, time.perf_counter() - t0, lin_iters)
+
+
+@wp.kernel
+def _negate_kernel(a: wp.array(dtype=wp.vec3d), out: wp.array(dtype=wp.vec3d)):
+    """out = -a."""
+    i = wp.tid()
+    out[i] = -a[i]
+
+
+def stats_summary(stats: list[StepStats]) -> dict:
+    """Aggregate per-step statistics: totals, medians and the per-step records."""
+    wall = np.array([s.wall_s for s in stats]) if stats else np.zeros(1)
+    iters = np.array([s.newton_iters for s in stats]) if stats else np.zeros(1)
+    return {
+        "steps": len(stats),
+        "newton_iters_mean": float(iters.mean()),
+        "newton_iters_max": int(iters.max()),
+        "not_converged": int(sum(not s.converged for s in stats)),
+        "step_ms_median": float(np.median(wall) * 1e3),
+        "step_ms_p95": float(np.percentile(wall, 95) * 1e3),
+        "per_step": [asdict(s) for s in stats],
+    }

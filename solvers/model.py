@@ -1,0 +1,133 @@
+"""The static simulation `Model` built from a scenario and a mesh, and the changing `State`.
+
+Newton-style split: a `Model` holds what does not change during a run (rest mesh, masses, material, plane,
+contact points and their area weights, which effects exist); a `State` holds positions and velocities; a solver
+advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scenarios.meshes import TetMesh
+from scenarios.model import Scenario
+from solvers.physics.inertia import lumped_mass
+from solvers.physics.material import shape_matrices, snh_parameters
+
+
+@dataclass
+class State:
+    """Positions x (n, 3) [m] and velocities v (n, 3) [m/s] at time t [s]."""
+
+    x: np.ndarray
+    v: np.ndarray
+    t: float = 0.0
+
+    def copy(self) -> "State":
+        """A deep copy."""
+        return State(self.x.copy(), self.v.copy(), self.t)
+
+
+@dataclass
+class Model:
+    """Static data of one scene on one mesh (float64, SI units).
+
+    X: (n, 3) rest positions; tets: (m, 4); surface: (k, 3) boundary triangles; Dm_inv: (m, 3, 3); vol: (m,);
+    mass: (n,) lumped masses; points: (p,) contact sample vertices with area weights `area` (p,) [m^2];
+    mu_snh, lam_snh: stable Neo-Hookean parameters [Pa]; plane_normal (3,), plane_offset [m] (None without plane);
+    terms: names of the incremental-potential terms that exist (`inertia` always, then `elasticity`, `gravity`,
+    `contact`, `friction`, `damping`); L: bounding-box diagonal of the rest mesh [m].
+    """
+
+    scenario: Scenario
+    mesh: TetMesh
+    X: np.ndarray
+    tets: np.ndarray
+    surface: np.ndarray
+    Dm_inv: np.ndarray
+    vol: np.ndarray
+    mass: np.ndarray
+    points: np.ndarray
+    area: np.ndarray
+    mu_snh: float
+    lam_snh: float
+    gravity: np.ndarray
+    plane_normal: np.ndarray | None
+    plane_offset: float
+    terms: tuple[str, ...]
+    L: float
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        """Number of vertices."""
+        return int(self.X.shape[0])
+
+    def has(self, term: str) -> bool:
+        """Whether the incremental potential contains `term`."""
+        return term in self.terms
+
+
+def active_terms(scenario: Scenario) -> tuple[str, ...]:
+    """The terms a scene calls for: effects switched on and physically present (mu = 0 -> no friction)."""
+    eff, plane = scenario.effects, scenario.plane
+    terms = ["inertia"]
+    if eff.elasticity:
+        terms.append("elasticity")
+    if eff.gravity and any(g != 0.0 for g in scenario.gravity):
+        terms.append("gravity")
+    if plane is not None and eff.contact:
+        terms.append("contact")
+        if eff.friction and plane.friction > 0.0:
+            terms.append("friction")
+        if eff.damping and scenario.contact.damping > 0.0 and scenario.contact.law == "penalty":
+            terms.append("damping")
+    return tuple(terms)
+
+
+def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
+    """Assemble the static model of `scenario` on `mesh` (rest positions as given by the mesh)."""
+    X = np.ascontiguousarray(mesh.X, dtype=np.float64)
+    tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
+    Dm_inv, vol = shape_matrices(X, tets)
+    mass = lumped_mass(vol, tets, X.shape[0], scenario.material.density)
+    areas = mesh.surface_vertex_areas()
+    points = np.flatnonzero(areas > 0.0)
+    mu, lam = snh_parameters(scenario.material.youngs_modulus, scenario.material.poisson_ratio)
+    plane = scenario.plane
+    return Model(
+        scenario=scenario, mesh=mesh, X=X, tets=tets, surface=np.asarray(mesh.surface, dtype=np.int64),
+        Dm_inv=Dm_inv, vol=vol, mass=mass, points=points, area=areas[points], mu_snh=mu, lam_snh=lam,
+        gravity=np.asarray(scenario.gravity, dtype=np.float64),
+        plane_normal=None if plane is None else np.asarray(plane.normal, dtype=np.float64),
+        plane_offset=0.0 if plane is None else float(plane.offset),
+        terms=active_terms(scenario), L=float(mesh.bbox_diagonal()),
+    )
+
+
+def rotation_matrix(euler_deg: tuple[float, float, float]) -> np.ndarray:
+    """Rotation R = Rz Ry Rx from XYZ Euler angles in degrees, (3, 3)."""
+    ax, ay, az = np.radians(euler_deg)
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def initial_state(model: Model) -> State:
+    """Place the body: squash and rotate about the centroid, translate, then set the clearance above the plane
+    along its normal (if both a plane and a clearance are given); velocities v + omega x (x - c)."""
+    ini = model.scenario.initial
+    X = model.X
+    c = X.mean(axis=0)
+    x = (X - c) * np.asarray(ini.squash) @ rotation_matrix(ini.rotation).T + c + np.asarray(ini.translation)
+    if model.plane_normal is not None and ini.clearance is not None:
+        n = model.plane_normal
+        lowest = float(np.min(x @ n - model.plane_offset))
+        x = x + (ini.clearance - lowest) * n
+    com = model.mass @ x / model.mass.sum()
+    v = np.asarray(ini.velocity, dtype=np.float64) + np.cross(np.asarray(ini.angular_velocity, float), x - com)
+    return State(x=x, v=np.ascontiguousarray(v), t=0.0)

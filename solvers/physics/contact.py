@@ -1,0 +1,80 @@
+"""Plane contact per unit surface area (DESIGN.md section 5), evaluated at surface points with area weights.
+
+Plane: phi(x) = n . x - d (n unit). Penalty law (the paper's, from warp's soft contact): penetration
+c = max(0, -phi), normal pressure k_e c + k_d max(0, -v.n), energy density 1/2 k_e c^2; the damping part is
+the dissipative potential h k_d / 2 max(0, -v.n)^2 with v = (x - x^n)/h, active only while penetrating.
+Barrier law (IPC): energy density kappa b(phi), b(d) = -(d - dhat)^2 log(d / dhat) for 0 < d < dhat, else 0.
+Arrays: x (p, 3) point positions, area (p,) [m^2]; energies in J, gradients (p, 3) in N, Hessians (p, 3, 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def signed_distance(x: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
+    """phi(x) = n . x - d, shape (p,) [m]."""
+    return x @ normal - offset
+
+
+def penalty_energy(x, x_prev, area, normal, offset, ke, kd, h) -> float:
+    """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [c > 0])."""
+    c = np.maximum(0.0, -signed_distance(x, normal, offset))
+    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * (c > 0)
+    return float(area @ (0.5 * ke * c**2 + 0.5 * h * kd * vn**2))
+
+
+def penalty_gradient(x, x_prev, area, normal, offset, ke, kd, h) -> np.ndarray:
+    """Gradient of `penalty_energy`: A (-k_e c + k_d min(0, v.n)) n, (p, 3)."""
+    c = np.maximum(0.0, -signed_distance(x, normal, offset))
+    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * (c > 0)
+    return (area * (-ke * c + kd * vn))[:, None] * normal[None, :]
+
+
+def penalty_hessian(x, x_prev, area, normal, offset, ke, kd, h) -> np.ndarray:
+    """Hessian blocks of `penalty_energy`: A (k_e [c > 0] + k_d / h [c > 0, v.n < 0]) n n^T, (p, 3, 3)."""
+    c = -signed_distance(x, normal, offset)
+    vn = (x - x_prev) @ normal / h
+    k = area * (ke * (c > 0) + kd / h * ((c > 0) & (vn < 0)))
+    return k[:, None, None] * np.outer(normal, normal)[None]
+
+
+def normal_pressure(x, v, normal, offset, ke, kd) -> np.ndarray:
+    """Penalty normal force per unit area f_n = k_e c + k_d max(0, -v.n) while penetrating, (p,) [Pa]."""
+    c = np.maximum(0.0, -signed_distance(x, normal, offset))
+    return (ke * c + kd * np.maximum(0.0, -(v @ normal))) * (c > 0)
+
+
+def barrier(d: np.ndarray, dhat: float) -> np.ndarray:
+    """IPC barrier b(d) = -(d - dhat)^2 log(d / dhat) on (0, dhat), 0 beyond; +inf for d <= 0."""
+    d = np.asarray(d, dtype=float)
+    out = np.zeros_like(d)
+    act = d < dhat
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[act] = np.where(d[act] > 0, -(d[act] - dhat) ** 2 * np.log(d[act] / dhat), np.inf)
+    return out
+
+
+def barrier_d1(d: np.ndarray, dhat: float) -> np.ndarray:
+    """b'(d) = -2 (d - dhat) log(d/dhat) - (d - dhat)^2 / d on (0, dhat), 0 beyond."""
+    d = np.asarray(d, dtype=float)
+    act = (d < dhat) & (d > 0)
+    out = np.zeros_like(d)
+    dd = d[act]
+    out[act] = -2.0 * (dd - dhat) * np.log(dd / dhat) - (dd - dhat) ** 2 / dd
+    return out
+
+
+def barrier_d2(d: np.ndarray, dhat: float) -> np.ndarray:
+    """b''(d) = -2 log(d/dhat) - 4 (d - dhat)/d + (d - dhat)^2 / d^2 on (0, dhat), 0 beyond (>= 0)."""
+    d = np.asarray(d, dtype=float)
+    act = (d < dhat) & (d > 0)
+    out = np.zeros_like(d)
+    dd = d[act]
+    out[act] = -2.0 * np.log(dd / dhat) - 4.0 * (dd - dhat) / dd + (dd - dhat) ** 2 / dd**2
+    return out
+
+
+def barrier_pressure(x, normal, offset, kappa, dhat) -> np.ndarray:
+    """Barrier normal force per unit area -kappa b'(phi) >= 0, (p,) [Pa]."""
+    return -kappa * barrier_d1(signed_distance(x, normal, offset), dhat)

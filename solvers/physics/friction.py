@@ -1,0 +1,60 @@
+"""Coulomb friction against the plane as a lagged dissipative potential (IPC's treatment, DESIGN.md section 5).
+
+Per point with area A and lagged normal pressure f_n (from the start of the step):
+D = A h mu f_n f0(|v_t|), v_t = T (x - x^n) / h, T = I - n n^T, with f0' = f1, f1(s) = min(s / eps_v, 1),
+eps_v = mu f_n / k_f. So the force is -A min(k_f |v_t|, mu f_n) v_t / |v_t|: viscous (k_f) below eps_v,
+Coulomb above. f0(s) = s^2 / (2 eps_v) for s < eps_v, s - eps_v / 2 beyond. A body that should stick creeps
+at the speed (tangential load per area) / k_f.
+Arrays: x, x_prev (p, 3), area (p,) [m^2], fn (p,) [Pa]; energies J, gradients (p, 3) N, Hessians (p, 3, 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def f0(s: np.ndarray, eps_v: np.ndarray) -> np.ndarray:
+    """Friction potential profile f0(s) [m/s]: s^2/(2 eps_v) below eps_v, s - eps_v/2 above."""
+    return np.where(s < eps_v, 0.5 * s**2 / eps_v, s - 0.5 * eps_v)
+
+
+def f1_over_s(s: np.ndarray, eps_v: np.ndarray) -> np.ndarray:
+    """f1(s)/s = 1/eps_v below eps_v, 1/s above [s/m]."""
+    return np.where(s < eps_v, 1.0 / eps_v, 1.0 / np.maximum(s, 1e-300))
+
+
+def slip_velocity(x, x_prev, normal, h) -> np.ndarray:
+    """Tangential velocity v_t = T (x - x^n) / h, (p, 3) [m/s]."""
+    v = (x - x_prev) / h
+    return v - np.outer(v @ normal, normal)
+
+
+def friction_energy(x, x_prev, area, fn, normal, mu, kf, h) -> float:
+    """D = sum A h mu f_n f0(|v_t|) [J]; points with f_n = 0 contribute nothing."""
+    vt = slip_velocity(x, x_prev, normal, h)
+    s = np.linalg.norm(vt, axis=1)
+    eps = np.maximum(mu * fn / kf, 1e-300)
+    return float(np.sum(area * h * mu * fn * f0(s, eps)))
+
+
+def friction_gradient(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
+    """dD/dx = A mu f_n (f1(s)/s) v_t, (p, 3) [N] (the friction force is its negative)."""
+    vt = slip_velocity(x, x_prev, normal, h)
+    s = np.linalg.norm(vt, axis=1)
+    eps = np.maximum(mu * fn / kf, 1e-300)
+    return (area * mu * fn * f1_over_s(s, eps))[:, None] * vt
+
+
+def friction_hessian(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
+    """Hessian blocks (p, 3, 3): A k_f / h T below eps_v; A mu f_n / (h s) (T - t t^T) above (PSD)."""
+    vt = slip_velocity(x, x_prev, normal, h)
+    s = np.linalg.norm(vt, axis=1)
+    eps = np.maximum(mu * fn / kf, 1e-300)
+    T = np.eye(3) - np.outer(normal, normal)
+    t = vt / np.maximum(s, 1e-300)[:, None]
+    slow = s < eps
+    k_slow = area * mu * fn / eps / h
+    k_fast = area * mu * fn / (h * np.maximum(s, 1e-300))
+    H = np.where(slow[:, None, None], k_slow[:, None, None] * T,
+                 k_fast[:, None, None] * (T[None] - np.einsum("pi,pj->pij", t, t)))
+    return H * (fn > 0)[:, None, None]
