@@ -311,7 +311,7 @@ def train(
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 optimizer.step()
-                total += float(loss) * len(frames)
+                total += loss.item() * len(frames)
             history.append(total / data.n_frames)
             bar.set_postfix(loss=f"{history[-1]:.3e}")
             if scheduler is not None:
