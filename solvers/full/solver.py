@@ -50,6 +50,13 @@ class NewtonSettings:
     max_halvings: int = 40
 
 
+def sparse_spd_solve(H: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
+    """Solve H x = b for a sparse symmetric positive-definite H with SuperLU in symmetric mode (minimum-degree
+    ordering on H + H^T, diagonal pivoting): measured fastest of SuperLU's orderings on these meshes."""
+    lu = spla.splu(H, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return lu.solve(b)
+
+
 class BlockPattern:
     """Fixed 3x3-block sparsity of the mesh: unique (row, col) vertex pairs of every tet plus the diagonal.
 
@@ -186,7 +193,7 @@ class FullSpaceSolver:
         if self.linear == "direct":
             H = self.pattern.to_scipy(self.values.numpy())
             g = self.grad.numpy().ravel()
-            dx = spla.splu(H, permc_spec="MMD_AT_PLUS_A").solve(-g)
+            dx = sparse_spd_solve(H, -g)
             return dx.reshape(-1, 3), 0
         wp.launch(_negate_kernel, self.model.n, device=self.device, inputs=[self.grad, self.rhs])
         self.dx.zero_()

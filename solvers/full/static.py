@@ -7,9 +7,7 @@ solver's kernels (projected Hessian, direct solve on the free degrees of freedom
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse.linalg as spla
-
-from solvers.full.solver import FullSpaceSolver
+from solvers.full.solver import FullSpaceSolver, sparse_spd_solve
 
 
 def static_equilibrium(solver: FullSpaceSolver, fixed: np.ndarray, tol: float = 1e-10,
@@ -27,7 +25,7 @@ def static_equilibrium(solver: FullSpaceSolver, fixed: np.ndarray, tol: float = 
         H = solver.pattern.to_scipy(solver.values.numpy())[free][:, free]
         g = solver.grad.numpy().ravel()[free]
         dx = np.zeros(3 * m.n)
-        dx[free] = spla.splu(H.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(-g)
+        dx[free] = sparse_spd_solve(H.tocsc(), -g)
         dx = dx.reshape(-1, 3)
         if np.abs(dx).max() < tol * m.L:
             return x + dx, it

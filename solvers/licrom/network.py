@@ -20,6 +20,9 @@ N_AFFINE = 12
 class PointNetEncoder(nn.Module):
     """PointNet without feature transform: per-point 64-128-256 layers, max pooling, linear head to r.
 
+    The shared per-point layers are Linear + BatchNorm + ReLU on the flattened points (the same maps as
+    Conv1d with kernel 1, faster on the CPU).
+
     Input points (B, N, 6): standardised rest positions Xhat and scaled displacements, per point. The output
     (B, r) does not depend on the order of the N points.
     """
@@ -29,15 +32,16 @@ class PointNetEncoder(nn.Module):
         layers: list[nn.Module] = []
         width_in = in_features
         for width in (64, 128, 256):
-            layers += [nn.Conv1d(width_in, width, kernel_size=1), nn.BatchNorm1d(width), nn.ReLU()]
+            layers += [nn.Linear(width_in, width), nn.BatchNorm1d(width), nn.ReLU()]
             width_in = width
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(width_in, r)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         """points (B, N, 6) -> latent codes (B, r)."""
-        per_point = self.features(points.transpose(1, 2))  # (B, 256, N)
-        return self.head(per_point.amax(dim=2))
+        B, N, _ = points.shape
+        per_point = self.features(points.reshape(B * N, -1)).view(B, N, -1)  # (B, N, 256); BN over all B N points
+        return self.head(per_point.amax(dim=1))
 
 
 def affine_features(Xhat: torch.Tensor) -> torch.Tensor:

@@ -26,7 +26,7 @@ import tempfile
 import time
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field as dataclass_field
 from pathlib import Path
 from typing import IO, Iterator
 
@@ -134,7 +134,8 @@ def lumped_volumes(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
 class Checkpoint:
     """A trained subspace.
 
-    arch: {r, width, depth, affine, n_ref}; r counts all basis columns (12 affine ones included).
+    arch: {r, width, depth, affine, n_ref}; r counts all basis columns (12 affine ones included); n_ref: number
+        of reference points of the affine orthogonalisation (0 without the affine variant).
     norm: {X_mean: [3 floats] [m], X_scale [m], u_scale [m], fit_scale [m]} (module docstring).
     encoder_state, field_state: torch state dicts (CPU tensors).
     identity: what the model was trained on (suite, scenario hashes, mesh name/resolution/bbox diagonal, ...).
@@ -147,12 +148,12 @@ class Checkpoint:
     norm: dict
     encoder_state: dict[str, torch.Tensor]
     field_state: dict[str, torch.Tensor]
-    identity: dict = field(default_factory=dict)
-    loss_history: list[float] = field(default_factory=list)
+    identity: dict = dataclass_field(default_factory=dict)
+    loss_history: list[float] = dataclass_field(default_factory=list)
     seed: int = 0
     train_seconds: float = 0.0
-    config: dict = field(default_factory=dict)
-    versions: dict = field(default_factory=dict)
+    config: dict = dataclass_field(default_factory=dict)
+    versions: dict = dataclass_field(default_factory=dict)
 
     @property
     def r(self) -> int:
@@ -270,8 +271,8 @@ def train(
         raise ValueError("device = 'cuda' but torch sees no CUDA device")
 
     X64, u64, w64 = data.X.double(), data.u.double(), data.weights.double()
-    X_mean = X64.mean(dim=0)
-    X_scale = float(torch.sqrt(((X64 - X_mean) ** 2).mean()))
+    X_mean = X64.mean(dim=0).float().double()  # rounded to float32: the field's buffers hold exactly these
+    X_scale = float(torch.sqrt(((X64 - X_mean) ** 2).mean()).float())
     u_scale = float(torch.sqrt((u64 ** 2).mean()))
     if u_scale == 0.0:
         raise ValueError("the training displacements are all zero: nothing to learn")
@@ -281,7 +282,8 @@ def train(
 
     _seed_everything(seed)
     generator = torch.Generator().manual_seed(seed)
-    ref = torch.randperm(data.n_points, generator=generator)[:n_ref].sort().values
+    ref = (torch.randperm(data.n_points, generator=generator)[:n_ref].sort().values if affine
+           else torch.zeros(0, dtype=torch.long))
     field_net = NeuralField(
         r, width, depth, affine, X_mean=X_mean.float(), X_scale=X_scale,
         ref_X=data.X[ref], ref_w=data.weights[ref],
@@ -531,7 +533,10 @@ def _cpu_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
 
 
 def _plain(obj: dict) -> dict:
-    """JSON round trip, so only plain types reach the checkpoint (numpy values become lists and numbers)."""
+    """JSON round trip, so only plain types reach the checkpoint.
+
+    numpy values become numbers and lists; any other non-JSON value is stored as its str().
+    """
     return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
 
 
@@ -541,5 +546,5 @@ def _versions() -> dict[str, str]:
         frictionbench = importlib.metadata.version("frictionbench")
     except importlib.metadata.PackageNotFoundError:
         frictionbench = "unknown"
-    return {"frictionbench": frictionbench, "torch": torch.__version__, "numpy": np.__version__,
+    return {"frictionbench": frictionbench, "torch": str(torch.__version__), "numpy": np.__version__,
             "python": platform.python_version()}

@@ -1,0 +1,187 @@
+"""The `frictionbench` command line: list, simulate, train, run, report, gate."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from scenarios.errors import ScenarioError
+from scenarios.model import MeshSpec, Scenario
+
+
+def resolve_scenario(ref: str) -> Scenario:
+    """A scenario from a TOML path, a suite member name (`quick/p1_mu0.1`) or a unique member name."""
+    from scenarios.load import load_scenario
+    from scenarios.suites import list_suites, load_suite
+
+    if ref.endswith(".toml") or Path(ref).is_file():
+        return load_scenario(ref)
+    suites = [ref.split("/", 1)[0]] if "/" in ref and ref.split("/", 1)[0] in list_suites() else list_suites()
+    found = [m.scenario for s in suites for m in load_suite(s).scenarios
+             if m.scenario.name == ref or m.scenario.name.split("/", 1)[1] == ref]
+    if len(found) != 1:
+        raise ScenarioError("scenario", ref, "not a TOML file nor exactly one suite member "
+                            f"({len(found)} matches); see `frictionbench list`")
+    return found[0]
+
+
+def parse_mesh(ref: str | None) -> MeshSpec | None:
+    """`name/resolution` or a mesh file path -> MeshSpec (None passes through)."""
+    if ref is None:
+        return None
+    if Path(ref).suffix:
+        return MeshSpec(name=None, resolution="", path=str(Path(ref).resolve()))
+    name, _, res = ref.partition("/")
+    return MeshSpec(name=name, resolution=res or "coarse")
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    """Print suites (with member counts), catalogue meshes and solvers."""
+    from scenarios.meshes import catalogue
+    from scenarios.suites import list_suites, load_suite
+    from solvers.registry import SOLVERS
+
+    print("suites:")
+    for name in list_suites():
+        s = load_suite(name)
+        print(f"  {name:8s} {len(s.train):3d} train {len(s.test):3d} test  {s.description}")
+        if args.verbose:
+            for m in s.scenarios:
+                print(f"      {m.split:5s} {m.scenario.name}")
+    print("meshes:")
+    for name, res in catalogue().items():
+        print(f"  {name:8s} {', '.join(res)}")
+    print("solvers:")
+    for name in SOLVERS:
+        print(f"  {name}")
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out."""
+    from reports.export import export_vtu_series
+    from solvers.run import run_scenario
+    from solvers.trajectory import write_json_atomic
+
+    scenario = resolve_scenario(args.scenario)
+    params = {}
+    if args.model:
+        params["model"] = args.model
+    traj, stats = run_scenario(scenario, args.solver, args.device, params, parse_mesh(args.mesh),
+                               progress=not args.quiet)
+    out = Path(args.out)
+    traj.save(out / "trajectory.npz")
+    if not args.no_vtu:
+        export_vtu_series(traj, out / "vtu")
+    write_json_atomic(out / "stats.json", stats)
+    print(f"{scenario.name}: {stats['steps']} steps, {stats['newton_iters_mean']:.2f} Newton iterations/step, "
+          f"{stats['step_ms_median']:.2f} ms/step (median), warm-up {stats['warmup_s']:.2f} s -> {out}")
+    if stats["failed"]:
+        print(f"FAILED: {stats['failure']}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def parse_variants(spec: str) -> list:
+    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`)."""
+    from bench.variants import VARIANTS
+
+    out = []
+    for name in [s for s in spec.split(",") if s and s != "full"]:
+        if name not in VARIANTS:
+            raise ScenarioError("--solvers", name, f"unknown variant; known: {sorted(VARIANTS)}")
+        out.extend(VARIANTS[name])
+    return out
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
+    from bench.runner import run_suite
+
+    csv = run_suite(args.suite, args.out, parse_variants(args.solvers), device=args.device, jobs=args.jobs,
+                    executor=args.executor, report=not args.no_report)
+    print(f"results: {csv}")
+    if not args.no_report:
+        print(f"report:  {Path(args.out) / 'report.html'}")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Rebuild report.html from a results folder."""
+    from bench.reporting import build_report
+
+    print(build_report(args.dir))
+    return 0
+
+
+def cmd_gate(args: argparse.Namespace) -> int:
+    """Check gates.toml against a results folder; non-zero exit with a list of what fell short."""
+    import pandas as pd
+
+    from bench.gates import check, load_gates
+    from bench.reporting import GATES_FILE
+    from bench.runner import load_run_info
+
+    suite = load_run_info(args.dir)["suite"]
+    verdicts = check(pd.read_csv(Path(args.dir) / "results.csv"), load_gates(args.gates or GATES_FILE), suite)
+    failed = [v for v in verdicts if not v.passed]
+    for v in failed:
+        print(f"FAIL {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit})")
+    print(f"{len(verdicts) - len(failed)} passed, {len(failed)} failed")
+    return 1 if failed or not verdicts else 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every sub-command."""
+    p = argparse.ArgumentParser(prog="frictionbench", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("list", help="show suites, meshes and solvers")
+    s.add_argument("-v", "--verbose", action="store_true", help="also list every suite member")
+    s.set_defaults(func=cmd_list)
+
+    s = sub.add_parser("simulate", help="simulate one scenario")
+    s.add_argument("scenario", help="TOML path or suite member name (e.g. verify/slide_30deg_mu0.2)")
+    s.add_argument("--solver", default="full")
+    s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
+    s.add_argument("--model", help="checkpoint of a trained reduced model (licrom)")
+    s.add_argument("--mesh", help="another mesh of the same shape: name/resolution or a file")
+    s.add_argument("--out", required=True)
+    s.add_argument("--no-vtu", action="store_true", help="skip the VTU/PVD export")
+    s.add_argument("-q", "--quiet", action="store_true")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
+    s.add_argument("--suite", required=True)
+    s.add_argument("--solvers", default="full", help="comma list of variants besides the full reference")
+    s.add_argument("--jobs", type=int, default=1)
+    s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
+    s.add_argument("--executor", default="process", choices=["process", "dask"])
+    s.add_argument("--out", required=True)
+    s.add_argument("--no-report", action="store_true")
+    s.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("report", help="rebuild report.html from stored results")
+    s.add_argument("dir")
+    s.set_defaults(func=cmd_report)
+
+    s = sub.add_parser("gate", help="check gates.toml against stored results (exit 1 if any fails)")
+    s.add_argument("dir")
+    s.add_argument("--gates", help="gates file (default: the repository's gates.toml)")
+    s.set_defaults(func=cmd_gate)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `frictionbench` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ScenarioError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

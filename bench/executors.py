@@ -1,0 +1,75 @@
+"""Pluggable executors for the matrix: a local process pool (default) or a Dask cluster.
+
+Both give `submit(fn, *args) -> future` and `as_completed(futures)`; the runner uses nothing else.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import as_completed as cf_as_completed
+
+
+class ProcessExecutor:
+    """A local pool of `jobs` worker processes (spawned: warp and taichi do not survive a fork)."""
+
+    def __init__(self, jobs: int) -> None:
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, fn, *args) -> Future:
+        """Schedule fn(*args)."""
+        return self.pool.submit(fn, *args)
+
+    @staticmethod
+    def as_completed(futures: Iterable[Future]) -> Iterator[Future]:
+        """Futures in completion order."""
+        return cf_as_completed(list(futures))
+
+    def __enter__(self) -> "ProcessExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskExecutor:
+    """A Dask distributed client: `address` of a running scheduler (env FRICTIONBENCH_DASK_SCHEDULER), or a
+    LocalCluster of `jobs` single-threaded worker processes started for the run."""
+
+    def __init__(self, jobs: int, address: str | None = None) -> None:
+        from dask.distributed import Client, LocalCluster
+
+        address = address or os.environ.get("FRICTIONBENCH_DASK_SCHEDULER")
+        self.cluster = None if address else LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                                         dashboard_address=None)
+        self.client = Client(address or self.cluster)
+
+    def submit(self, fn, *args):
+        """Schedule fn(*args) on the cluster (pure=False: every submission runs)."""
+        return self.client.submit(fn, *args, pure=False)
+
+    @staticmethod
+    def as_completed(futures):
+        """Futures in completion order."""
+        from dask.distributed import as_completed
+
+        return as_completed(list(futures))
+
+    def __enter__(self) -> "DaskExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def make_executor(kind: str, jobs: int):
+    """`process` (local pool) or `dask` (see DaskExecutor)."""
+    if kind == "process":
+        return ProcessExecutor(jobs)
+    if kind == "dask":
+        return DaskExecutor(jobs)
+    raise ValueError(f"executor = {kind!r}: expected 'process' or 'dask'")

@@ -1,0 +1,71 @@
+"""CI gates: thresholds per suite and solver variant from `gates.toml`, checked against results.csv.
+
+Format (`gates.toml` at the repository root):
+
+    [[gate]]
+    suite = "quick"            # which suite's results it applies to
+    variant = "full/reference" # `solver/variant` label of the rows (`*` for every row)
+    split = "test"             # optional: only rows of this split
+    metric = "pos_rmse_rel"
+    max = 0.05                 # and/or `min = ...`; boolean metrics use `equals = true`
+
+Each gate yields one verdict per matching row; a gate that matches no row fails (a missing run is a failure).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from reports.table import variant_labels
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One gate checked on one results row."""
+
+    gate: str
+    scenario: str
+    variant: str
+    metric: str
+    value: object
+    limit: str
+    passed: bool
+
+
+def load_gates(path: str | Path) -> list[dict]:
+    """The `[[gate]]` entries of a gates file."""
+    with open(path, "rb") as f:
+        return tomllib.load(f).get("gate", [])
+
+
+def _passes(value: object, gate: dict) -> bool:
+    if value is None or (isinstance(value, float) and pd.isna(value)):
+        return False
+    if "equals" in gate:
+        return str(value).lower() == str(gate["equals"]).lower()
+    v = float(value)
+    return ("max" not in gate or v <= gate["max"]) and ("min" not in gate or v >= gate["min"])
+
+
+def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:
+    """Verdicts of every gate of `suite` on the results table."""
+    labels = variant_labels(results)
+    verdicts = []
+    for i, gate in enumerate(g for g in gates if g.get("suite") == suite):
+        sel = results["variant"].notna() if gate.get("variant", "*") == "*" else labels == gate["variant"]
+        if "split" in gate:
+            sel &= results["split"] == gate["split"]
+        limit = " ".join(f"{k} {gate[k]}" for k in ("min", "max", "equals") if k in gate)
+        name = gate.get("name", f"{gate.get('variant', '*')}:{gate['metric']}")
+        rows = results[sel]
+        if rows.empty:
+            verdicts.append(Verdict(name, "(none)", gate.get("variant", "*"), gate["metric"], None, limit, False))
+        for _, row in rows.iterrows():
+            value = row.get(gate["metric"])
+            verdicts.append(Verdict(name, row["scenario"], labels[row.name], gate["metric"], value, limit,
+                                    _passes(value, gate)))
+    return verdicts

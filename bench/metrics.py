@@ -1,0 +1,364 @@
+"""Metrics of one trajectory against a reference trajectory on the same mesh (DESIGN.md section 8).
+
+Every function is pure: trajectories in, numbers out. Units are SI; every `*_rel` metric is divided by the
+length scale L = |max(X) - min(X)|, the diagonal of the rest mesh's bounding box, so it is dimensionless.
+
+Shapes: F frames, n vertices, m tets, r basis columns. Positions x (F, n, 3) [m], times t (F,) [s],
+vertex masses (n,) [kg]. Where a reference and a trajectory store different frame times, the metrics compare
+the frames whose times they share (`align_frames`); `frames_compared` in `compare` says how many there were.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from scenarios.model import Material, Plane
+from solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
+from solvers.trajectory import Trajectory
+
+ArrayLike3 = Sequence[float] | np.ndarray
+
+#: Default gravity [m/s^2] (y is up).
+GRAVITY: tuple[float, float, float] = (0.0, -9.81, 0.0)
+
+#: Keys of `compare`'s result, in the order the results table shows them.
+METRIC_KEYS: tuple[str, ...] = (
+    "frames_compared",
+    "pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "proj_rmse_rel",
+    "stick", "stick_ref", "stick_agree", "end_speed", "end_speed_ref",
+    "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "energy_ratio_max",
+)
+
+
+def bbox_diagonal(X: np.ndarray) -> float:
+    """L = |max_i X_i - min_i X_i| [m]: diagonal of the axis-aligned bounding box of rest positions X (n, 3)."""
+    return float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
+
+
+def lumped_masses(X: np.ndarray, tets: np.ndarray, density: float) -> np.ndarray:
+    """Lumped vertex masses m_i = sum over tets e containing i of rho |V_e| / 4, shape (n,) [kg]."""
+    _, vol = shape_matrices(X, tets)
+    m = np.zeros(X.shape[0])
+    np.add.at(m, tets, np.repeat(density * np.abs(vol)[:, None] / 4.0, 4, axis=1))
+    return m
+
+
+def _unit_plane(normal: ArrayLike3, offset: float = 0.0) -> tuple[np.ndarray, float]:
+    """(n / |n|, d / |n|): the plane n . x = d with a unit normal."""
+    n = np.asarray(normal, dtype=float)
+    s = np.linalg.norm(n)
+    if not s > 0.0:
+        raise ValueError(f"plane normal {tuple(n)} has zero length")
+    return n / s, float(offset) / s
+
+
+def _masses(n: int, masses: np.ndarray | None) -> np.ndarray:
+    """Vertex masses (n,): the given ones, or uniform 1/n when None."""
+    if masses is None:
+        return np.full(n, 1.0 / n)
+    masses = np.asarray(masses, dtype=float)
+    if masses.shape != (n,):
+        raise ValueError(f"masses have shape {masses.shape}, expected ({n},)")
+    return masses
+
+
+def align_frames(t_ref: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (i_ref, i) of the frames whose times agree, t_ref[i_ref] ~ t[i], in increasing time.
+
+    Two times agree when |t_ref - t| <= 1e-6 * min(positive frame spacing of either series) + 1e-12 s.
+    Raises ValueError when the series share no time.
+    """
+    t_ref, t = np.asarray(t_ref, dtype=float), np.asarray(t, dtype=float)
+    if t_ref.shape == t.shape and np.array_equal(t_ref, t):
+        idx = np.arange(t.shape[0])
+        return idx, idx
+    spacings = np.concatenate([np.diff(np.sort(t_ref)), np.diff(np.sort(t))])
+    spacings = spacings[spacings > 0]
+    tol = 1e-6 * (spacings.min() if spacings.size else 1.0) + 1e-12
+    order = np.argsort(t_ref)
+    pos = np.clip(np.searchsorted(t_ref[order], t), 1, max(t_ref.size - 1, 1))
+    candidates = np.stack([order[pos - 1], order[np.minimum(pos, t_ref.size - 1)]], axis=1)
+    nearest = candidates[np.arange(t.size), np.argmin(np.abs(t_ref[candidates] - t[:, None]), axis=1)]
+    hit = np.abs(t_ref[nearest] - t) <= tol
+    if not hit.any():
+        raise ValueError(
+            f"no common frame times: reference has {t_ref.size} frames in [{t_ref.min():g}, {t_ref.max():g}] s, "
+            f"trajectory has {t.size} frames in [{t.min():g}, {t.max():g}] s")
+    i, i_ref = np.nonzero(hit)[0], nearest[hit]
+    by_time = np.argsort(t[i])
+    return i_ref[by_time], i[by_time]
+
+
+def _aligned(ref: Trajectory, traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t (F,), x_ref (F, n, 3), x (F, n, 3)) on the common frames of two trajectories of the same mesh."""
+    if ref.X.shape != traj.X.shape or not np.allclose(ref.X, traj.X, rtol=0.0, atol=1e-6 * bbox_diagonal(ref.X)):
+        raise ValueError(
+            f"trajectories are on different meshes: rest positions {ref.X.shape} vs {traj.X.shape} differ")
+    i_ref, i = align_frames(ref.t, traj.t)
+    return traj.t[i], _frames(ref.x, i_ref), _frames(traj.x, i)
+
+
+def _frames(x: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """x[idx] along the frame axis, without a copy when idx selects every frame in order."""
+    return x if np.array_equal(idx, np.arange(x.shape[0])) else x[idx]
+
+
+def _frame_rms(x_ref: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """e_k = sqrt(mean_i |x_ki - x_ref_ki|^2), shape (F,) [m]."""
+    return np.sqrt(np.mean(np.sum((x - x_ref) ** 2, axis=-1), axis=-1))
+
+
+def error_over_time(ref: Trajectory, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame relative error: (t (F,) [s], e (F,) [-]) with e_k = sqrt(mean_i |x_ki - x_ref_ki|^2) / L."""
+    t, x_ref, x = _aligned(ref, traj)
+    return t, _frame_rms(x_ref, x) / bbox_diagonal(ref.X)
+
+
+def pos_rmse_rel(ref: Trajectory, traj: Trajectory) -> float:
+    """sqrt(mean over frames k and vertices i of |x_ki - x_ref_ki|^2) / L."""
+    _, x_ref, x = _aligned(ref, traj)
+    return float(np.sqrt(np.mean(np.sum((x - x_ref) ** 2, axis=-1)))) / bbox_diagonal(ref.X)
+
+
+def pos_max_rel(ref: Trajectory, traj: Trajectory) -> float:
+    """max over frames k of sqrt(mean_i |x_ki - x_ref_ki|^2) / L."""
+    _, x_ref, x = _aligned(ref, traj)
+    return float(np.max(_frame_rms(x_ref, x))) / bbox_diagonal(ref.X)
+
+
+def final_err_rel(ref: Trajectory, traj: Trajectory) -> float:
+    """sqrt(mean_i |x_Ki - x_ref_Ki|^2) / L at the last common frame K."""
+    _, x_ref, x = _aligned(ref, traj)
+    return float(_frame_rms(x_ref[-1:], x[-1:])[0]) / bbox_diagonal(ref.X)
+
+
+def center_of_mass(x: np.ndarray, masses: np.ndarray | None = None) -> np.ndarray:
+    """c = sum_i m_i x_i / sum_i m_i over the vertex axis: x (..., n, 3) -> (..., 3) [m]; uniform m by default."""
+    m = _masses(x.shape[-2], masses)
+    return np.einsum("i,...ij->...j", m, x) / m.sum()
+
+
+def com_err_rel(ref: Trajectory, traj: Trajectory, masses: np.ndarray | None = None) -> float:
+    """max over frames k of |c_k - c_ref_k| / L, c the mass-weighted centre (`center_of_mass`)."""
+    _, x_ref, x = _aligned(ref, traj)
+    d = center_of_mass(x, masses) - center_of_mass(x_ref, masses)
+    return float(np.max(np.linalg.norm(d, axis=-1))) / bbox_diagonal(ref.X)
+
+
+def _tangential(v: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """v - n (n . v): the part of vectors v (..., 3) in the plane with unit normal n."""
+    return v - np.einsum("...j,j->...", v, n)[..., None] * n
+
+
+def plane_travel(x: np.ndarray, plane_normal: ArrayLike3, masses: np.ndarray | None = None) -> np.ndarray:
+    """s = P (c_last - c_first), P = I - n n^T: centre-of-mass displacement along the plane, (3,) [m]."""
+    n, _ = _unit_plane(plane_normal)
+    c = center_of_mass(x[[0, -1]], masses)
+    return _tangential(c[1] - c[0], n)
+
+
+def slide_err_rel(ref: Trajectory, traj: Trajectory, plane_normal: ArrayLike3,
+                  masses: np.ndarray | None = None, floor_rel: float = 1e-2) -> float:
+    """|s - s_ref| / max(|s_ref|, floor_rel L) with s = `plane_travel` over the common frames.
+
+    s is a vector, so sliding the right distance in the wrong direction counts as an error. The floor keeps the
+    ratio finite where the reference barely moves (a body that sticks): there it is the travel error in units
+    of floor_rel L.
+    """
+    _, x_ref, x = _aligned(ref, traj)
+    s_ref, s = plane_travel(x_ref, plane_normal, masses), plane_travel(x, plane_normal, masses)
+    denom = max(float(np.linalg.norm(s_ref)), floor_rel * bbox_diagonal(ref.X))
+    return float(np.linalg.norm(s - s_ref)) / denom
+
+
+def vertex_velocities(traj: Trajectory) -> np.ndarray:
+    """Vertex velocities (F, n, 3) [m/s]: traj.v when stored, else dx/dt by finite differences of the frames.
+
+    The differences are central inside and one-sided at the ends (`numpy.gradient`); a single frame gives zeros.
+    """
+    if traj.v is not None:
+        return traj.v
+    if traj.n_frames < 2:
+        return np.zeros_like(traj.x)
+    return np.gradient(traj.x, traj.t, axis=0)
+
+
+def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
+          plane_offset: float | None = None, masses: np.ndarray | None = None,
+          tail_fraction: float = 0.1, speed_tol_rel: float = 1e-3,
+          contact_tol_rel: float = 1e-2) -> tuple[bool, float]:
+    """Is the body at rest on the plane at the end? Returns (verdict, measured speed [m/s]).
+
+    speed = mean over the tail frames k of |P v_c,k|, the centre of mass's velocity along the plane
+    (P = I - n n^T, v_c = sum_i m_i v_i / sum_i m_i, v from `vertex_velocities`). The tail is the frames with
+    t >= t_end - tail_fraction (t_end - t_0), at least the last two. The body sticks when
+    speed < speed_tol_rel * L [m/s] and, if plane_offset d is given, it touches the plane at the last frame:
+    min_i (n . x_i - d) <= contact_tol_rel * L. L defaults to the rest mesh's bounding-box diagonal.
+    """
+    n, d = _unit_plane(plane_normal, 0.0 if plane_offset is None else plane_offset)
+    L = bbox_diagonal(traj.X) if L is None else L
+    t = traj.t
+    tail = t >= t[-1] - tail_fraction * (t[-1] - t[0])
+    tail[-min(2, t.size):] = True
+    v_c = center_of_mass(vertex_velocities(traj)[tail], masses)
+    speed = float(np.mean(np.linalg.norm(_tangential(v_c, n), axis=-1)))
+    at_rest = speed < speed_tol_rel * L
+    if plane_offset is not None:
+        at_rest = at_rest and float(np.min(traj.x[-1] @ n - d)) <= contact_tol_rel * L
+    return bool(at_rest), speed
+
+
+def stick_agree(ref: Trajectory, traj: Trajectory, plane_normal: ArrayLike3, *,
+                plane_offset: float | None = None, masses: np.ndarray | None = None) -> bool:
+    """stick(traj) == stick(ref), both judged with the reference's L (see `stick`)."""
+    L = bbox_diagonal(ref.X)
+    kw = {"plane_offset": plane_offset, "masses": masses}
+    return stick(traj, plane_normal, L, **kw)[0] == stick(ref, plane_normal, L, **kw)[0]
+
+
+def proj_rmse_rel(ref: Trajectory, basis: np.ndarray, masses: np.ndarray | None = None) -> float:
+    """Best relative error a subspace can reach on the reference: sqrt(mean_k,i |W_i q_k - u_ki|^2) / L.
+
+    u_k = x_ref_k - X (F, n, 3) are the reference displacements, W the basis (n, 3, r) or (3n, r) [m], and q_k the
+    per-frame least-squares fit: argmin_q |W q - u_k|^2 when masses is None (then this is the lowest
+    `pos_rmse_rel` any trajectory in the subspace can have), else argmin_q (W q - u_k)^T M (W q - u_k) with the
+    lumped mass matrix M (the reduced solver's own metric). The error itself is always the unweighted RMS.
+    """
+    n = ref.X.shape[0]
+    W = np.asarray(basis, dtype=float).reshape(3 * n, -1)
+    U = (ref.x - ref.X).reshape(ref.n_frames, 3 * n).T  # (3n, F)
+    w = np.ones(3 * n) if masses is None else np.sqrt(np.repeat(_masses(n, masses), 3))
+    Q = np.linalg.lstsq(w[:, None] * W, w[:, None] * U, rcond=None)[0]  # (r, F)
+    return float(np.sqrt(3.0 * np.mean((W @ Q - U) ** 2))) / bbox_diagonal(ref.X)  # mean over 3nF -> nF
+
+
+def finite(traj: Trajectory) -> bool:
+    """True when every stored position, velocity and latent coordinate is finite."""
+    return all(bool(np.isfinite(a).all()) for a in (traj.t, traj.x, traj.v, traj.q) if a is not None)
+
+
+def max_penetration_rel(traj: Trajectory, plane_normal: ArrayLike3, plane_offset: float) -> float:
+    """max(0, max over frames and vertices of -(n . x_ki - d)) / L for the plane n . x = d (n normalised)."""
+    n, d = _unit_plane(plane_normal, plane_offset)
+    depth = float(d - np.min(traj.x @ n))
+    return (depth if depth > 0.0 or np.isnan(depth) else 0.0) / bbox_diagonal(traj.X)
+
+
+def inverted_tets(traj: Trajectory) -> tuple[int, int]:
+    """(tets with J_e = det(F_e) <= 0 in at least one frame, the largest such count in one frame).
+
+    J_e = det(Ds_e) / det(Dm_e), Ds and Dm the edge matrices [x1 - x0, x2 - x0, x3 - x0] of tet e now and at rest,
+    so a tet listed with negative orientation at rest is not counted as inverted. Non-finite J is not counted.
+    """
+    det_dm = np.linalg.det(_edge_matrices(traj.X, traj.tets))
+    ever = np.zeros(traj.tets.shape[0], dtype=bool)
+    frame_max = 0
+    for x in traj.x:
+        with np.errstate(invalid="ignore"):
+            bad = np.linalg.det(_edge_matrices(x, traj.tets)) / det_dm <= 0.0
+        ever |= bad
+        frame_max = max(frame_max, int(bad.sum()))
+    return int(ever.sum()), frame_max
+
+
+def _edge_matrices(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """[x1 - x0, x2 - x0, x3 - x0] as columns, (m, 3, 3), for positions x (n, 3)."""
+    return np.stack([x[tets[:, k]] - x[tets[:, 0]] for k in (1, 2, 3)], axis=-1)
+
+
+def _body_masses(traj: Trajectory, material: Material, masses: np.ndarray | None) -> np.ndarray:
+    """Vertex masses (n,) [kg]: the given ones, else the lumped masses of the material's density."""
+    if masses is None:
+        return lumped_masses(traj.X, traj.tets, material.density)
+    return _masses(traj.X.shape[0], masses)
+
+
+def energy_terms(traj: Trajectory, material: Material, gravity: ArrayLike3 = GRAVITY,
+                 masses: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per-frame energies [J], each (F,): `kinetic`, `elastic`, `gravity`.
+
+    kinetic_k = 1/2 sum_i m_i |v_ki|^2 (v from `vertex_velocities`);
+    elastic_k = sum_e V_e (Psi(F_ke) - Psi(I)), Psi the stable Neo-Hookean density with (mu, lam) from
+    (E, nu) (`solvers.physics.material`), F = Ds Dm^-1; zero for the undeformed body;
+    gravity_k = -M g . c_k - min_j (-M g . c_j), c the centre of mass: the potential measured from the lowest one
+    reached in the trajectory, so every term is >= 0 near rest. m defaults to the lumped masses rho V_e / 4.
+    Contact energy is not included (penetration is a metric of its own).
+    """
+    m = _body_masses(traj, material, masses)
+    v = vertex_velocities(traj)
+    kinetic = 0.5 * np.einsum("i,kij,kij->k", m, v, v)
+    mu, lam = snh_parameters(material.youngs_modulus, material.poisson_ratio)
+    dm_inv, vol = shape_matrices(traj.X, traj.tets)
+    psi_rest = float(snh_energy_density(np.eye(3), mu, lam))
+    elastic = np.array([vol @ (snh_energy_density(_edge_matrices(x, traj.tets) @ dm_inv, mu, lam) - psi_rest)
+                        for x in traj.x])
+    potential = -(traj.x @ np.asarray(gravity, dtype=float)) @ m
+    return {"kinetic": kinetic, "elastic": elastic, "gravity": potential - np.min(potential)}
+
+
+def energy_ratio_max(traj: Trajectory, material: Material, gravity: ArrayLike3 = GRAVITY,
+                     masses: np.ndarray | None = None) -> float:
+    """max_k E_k / E_0, E = kinetic + elastic + gravity from `energy_terms`; <= 1 when energy never grows.
+
+    When E_0 is zero up to round-off (below 1e-12 of max(max_k |E_k|, M |g| L), e.g. a body at rest at its lowest
+    point), the ratio is 1 if every E_k is that small too and inf otherwise. NaN for a non-finite trajectory.
+    """
+    if not finite(traj):
+        return float("nan")
+    E = sum(energy_terms(traj, material, gravity, masses).values())
+    weight = _body_masses(traj, material, masses).sum() * float(np.linalg.norm(gravity)) * bbox_diagonal(traj.X)
+    tiny = 1e-12 * max(float(np.max(np.abs(E))), weight)
+    if E[0] <= tiny:
+        return 1.0 if float(np.max(E)) <= tiny else float("inf")
+    return float(np.max(E) / E[0])
+
+
+def stability(traj: Trajectory, *, plane: Plane | None = None, material: Material | None = None,
+              gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None) -> dict[str, float | int | bool | None]:
+    """Stability metrics of one trajectory (no reference needed): finite, max_penetration_rel, inverted_tets,
+    inverted_tets_frame_max, energy_ratio_max. Metrics whose input is missing (no plane, no material) are None."""
+    inverted, inverted_frame = inverted_tets(traj)
+    return {
+        "finite": finite(traj),
+        "max_penetration_rel": None if plane is None else max_penetration_rel(traj, plane.normal, plane.offset),
+        "inverted_tets": inverted,
+        "inverted_tets_frame_max": inverted_frame,
+        "energy_ratio_max": None if material is None else energy_ratio_max(traj, material, gravity, masses),
+    }
+
+
+def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, material: Material | None = None,
+            gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None,
+            basis: np.ndarray | None = None) -> dict[str, float | int | bool | None]:
+    """All metrics of one results row (keys `METRIC_KEYS`), `traj` against the reference `ref` on the same mesh.
+
+    masses (n,) weight the centres of mass and energies; by default the lumped masses of `material` if given,
+    else uniform. plane (normal, offset) enables slide, stick and penetration metrics; material the energy
+    ratio; basis (n, 3, r) the Euclidean projection error of the reference (a lower bound of pos_rmse_rel for
+    any trajectory x = X + W q). Metrics without their input are None.
+    """
+    if masses is None and material is not None:
+        masses = lumped_masses(ref.X, ref.tets, material.density)
+    i_ref, _ = align_frames(ref.t, traj.t)
+    row: dict[str, float | int | bool | None] = {
+        "frames_compared": int(i_ref.size),
+        "pos_rmse_rel": pos_rmse_rel(ref, traj),
+        "pos_max_rel": pos_max_rel(ref, traj),
+        "com_err_rel": com_err_rel(ref, traj, masses),
+        "final_err_rel": final_err_rel(ref, traj),
+        "slide_err_rel": None, "proj_rmse_rel": None,
+        "stick": None, "stick_ref": None, "stick_agree": None, "end_speed": None, "end_speed_ref": None,
+    }
+    if plane is not None:
+        L = bbox_diagonal(ref.X)
+        row["slide_err_rel"] = slide_err_rel(ref, traj, plane.normal, masses)
+        row["stick"], row["end_speed"] = stick(traj, plane.normal, L, plane_offset=plane.offset, masses=masses)
+        row["stick_ref"], row["end_speed_ref"] = stick(ref, plane.normal, L, plane_offset=plane.offset,
+                                                       masses=masses)
+        row["stick_agree"] = row["stick"] == row["stick_ref"]
+    if basis is not None:
+        row["proj_rmse_rel"] = proj_rmse_rel(ref, basis)
+    row.update(stability(traj, plane=plane, material=material, gravity=gravity, masses=masses))
+    return row

@@ -1,0 +1,190 @@
+"""The matrix runner: every scenario of a suite with the full-space reference and every solver variant.
+
+Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
+shape on the suite's training split (cached), (3) every variant on every member (and on the other mesh of the
+shape, for remeshing), (4) metrics against the references -> results.csv and report.html. Each run is a folder of
+the `RunStore` keyed by a hash of its scenario and settings: an interrupted run resumes with what is missing.
+Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from bench.executors import make_executor
+from bench.metrics import compare
+from bench.store import RunStore, run_key
+from scenarios.model import MeshSpec, Scenario
+from scenarios.suites import SuiteMember, load_suite
+from solvers.trajectory import write_json_atomic
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One solver configuration of the matrix: solver name, parameters, label, and an optional other mesh
+    resolution of the same shape (remeshing) whose trajectory is compared after transfer to the reference mesh."""
+
+    solver: str
+    params: dict = field(default_factory=dict)
+    label: str = ""
+    remesh: str | None = None
+
+
+@dataclass(frozen=True)
+class Task:
+    """One simulation: scenario, solver, parameters, mesh (None: the scenario's own)."""
+
+    scenario: Scenario
+    solver: str
+    params: dict
+    mesh: MeshSpec | None = None
+
+    @property
+    def key(self) -> str:
+        """Store key of this run."""
+        extra = {"mesh": self.mesh.key} if self.mesh else {}
+        return run_key(self.scenario, self.solver, self.params | extra)
+
+
+def execute(task: Task, store_root: str, device: str) -> str:
+    """Run one task into the store unless done (executed in a worker process); returns its key."""
+    from solvers.run import run_scenario
+
+    store = RunStore(store_root)
+    if not store.done(task.key):
+        try:
+            traj, stats = run_scenario(task.scenario, task.solver, device, task.params, task.mesh)
+        except Exception as err:  # a failed run is a row with its reason, never a crash of the matrix
+            traj, stats = None, {"failed": True, "failure": f"{type(err).__name__}: {err}", "solver": task.solver}
+        stats["scenario"] = task.scenario.name
+        store.save(task.key, traj, stats)
+    return task.key
+
+
+def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, executor: str,
+              desc: str) -> None:
+    """Execute the tasks not yet done, `jobs` at a time, with a progress bar."""
+    todo = [t for t in {t.key: t for t in tasks}.values() if not store.done(t.key)]
+    if not todo:
+        return
+    with make_executor(executor, jobs) as ex:
+        futures = [ex.submit(execute, t, str(store.root), device) for t in todo]
+        for f in tqdm(ex.as_completed(futures), total=len(futures), desc=desc, unit="run"):
+            f.result()
+
+
+def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
+    """The scenario's mesh at another resolution of the same catalogue shape."""
+    spec = member.scenario.mesh
+    return MeshSpec(name=spec.name, resolution=resolution, scale=spec.scale)
+
+
+def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
+              executor: str = "process", report: bool = True) -> Path:
+    """Run the matrix of `suite_name` with `variants` into `out`; returns the results.csv path."""
+    from bench.training import prepare_variants
+
+    out = Path(out)
+    store = RunStore(out / "runs")
+    suite = load_suite(suite_name)
+    t0 = time.perf_counter()
+    refs = {m.scenario.name: Task(m.scenario, "full", {}) for m in suite.scenarios}
+    remesh_refs = [Task(m.scenario, "full", {}, mesh_variant(m, v.remesh))
+                   for m in suite.scenarios for v in variants if v.remesh]
+    run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "full-space references")
+    resolved = prepare_variants(suite, variants, store, refs, out / "models", device)
+    tasks = []
+    for m in suite.scenarios:
+        for v, params in member_variants(resolved, variants, m):
+            if params is None:
+                continue
+            tasks.append(Task(m.scenario, v.solver, params, mesh_variant(m, v.remesh) if v.remesh else None))
+    run_tasks(tasks, store, device, jobs, executor, "solver variants")
+    rows = collect_rows(suite, refs, resolved, variants, store)
+    from reports.table import write_results_csv
+
+    csv = write_results_csv(rows, out / "results.csv")
+    write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
+                                         "variants": [v.__dict__ for v in variants],
+                                         "wall_s": time.perf_counter() - t0})
+    if report:
+        from bench.reporting import build_report
+
+        build_report(out)
+    return csv
+
+
+def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) -> list[tuple[Variant, dict | None]]:
+    """The (variant, params) that apply to one member: a per-shape entry only to members of that shape; None
+    (a failed row) when a variant has no entry for the member's shape."""
+    shape = member.scenario.mesh.name or member.scenario.mesh.key
+    out = []
+    for v in variants:
+        entries = [p for w, p in resolved if w is v]
+        match = [p for p in entries if p is not None and p.get("shape", shape) == shape]
+        out.append((v, match[0] if match else None))
+    return out
+
+
+def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Variant], store: RunStore) -> list[dict]:
+    """One results row per (member, variant) plus one per reference: identity, metrics, timings."""
+    rows = []
+    for m in suite.scenarios:
+        sc = m.scenario
+        ref_task = refs[sc.name]
+        ref, ref_stats = store.load(ref_task.key)
+        base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
+                "mu": sc.plane.friction if sc.plane else None}
+        rows.append(base | {"solver": "full", "variant": "reference", "run": ref_task.key}
+                    | _timing(ref_stats, ref_stats) | _metrics(ref, ref, sc, ref_stats))
+        for v, params in member_variants(resolved, variants, m):
+            label = v.label or v.solver
+            if params is None:
+                rows.append(base | {"solver": v.solver, "variant": label, "failed": True,
+                                    "failure": "no reduced model for this mesh shape"})
+                continue
+            mesh = mesh_variant(m, v.remesh) if v.remesh else None
+            task = Task(sc, v.solver, params, mesh)
+            traj, stats = store.load(task.key)
+            # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed)
+            v_ref, v_ref_stats = store.load(Task(sc, "full", {}, mesh).key) if mesh else (ref, ref_stats)
+            row = base | {"solver": v.solver, "variant": label, "run": task.key,
+                          "remesh": v.remesh or "", "r": params.get("r")}
+            rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, sc, stats))
+    return rows
+
+
+def _timing(stats: dict, ref_stats: dict) -> dict:
+    """Timing columns; speedup = full step time / this step time, both measured in this run."""
+    keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean")
+    row = {k: stats.get(k) for k in keys}
+    if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
+        row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
+    return row
+
+
+def _metrics(ref, traj, sc: Scenario, stats: dict) -> dict:
+    """Metric columns of one row, or a failed row with its reason."""
+    failed = {"failed": bool(stats.get("failed")), "failure": stats.get("failure", "")}
+    if traj is None or ref is None:
+        return failed | {"failed": True, "failure": stats.get("failure") or "no trajectory"}
+    return failed | compare(ref, traj, plane=sc.plane, material=sc.material, gravity=sc.gravity,
+                            basis=_basis_of(stats))
+
+
+def _basis_of(stats: dict) -> np.ndarray | None:
+    """The basis stored beside a reduced run, for the projection error (None for full-space runs)."""
+    path = stats.get("basis_path")
+    return np.load(path) if path and Path(path).is_file() else None
+
+
+def load_run_info(out: str | Path) -> dict:
+    """The run.json of a results folder."""
+    return json.loads((Path(out) / "run.json").read_text())

@@ -1,0 +1,52 @@
+"""The results store: one folder per (scenario, solver, settings) run, keyed by a hash, written atomically.
+
+A run folder holds `trajectory.npz` and `stats.json`; it counts as done only once `stats.json` exists (written
+last), so an interrupted run is simply redone and a rerun recomputes only what is missing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from scenarios.load import scenario_to_dict
+from scenarios.model import Scenario
+from solvers.trajectory import Trajectory, write_json_atomic
+
+
+def run_key(scenario: Scenario, solver: str, params: dict) -> str:
+    """Stable key `<solver>-<sha256[:16]>` of what is simulated and how (not of its name)."""
+    blob = json.dumps({"scenario": scenario_to_dict(scenario) | {"name": "", "description": "", "tags": []},
+                       "solver": solver, "params": params}, sort_keys=True, default=str)
+    return f"{solver}-{hashlib.sha256(blob.encode()).hexdigest()[:16]}"
+
+
+class RunStore:
+    """Run folders under `root`: `root/<key>/{trajectory.npz, stats.json}`."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+
+    def folder(self, key: str) -> Path:
+        """The folder of run `key`."""
+        return self.root / key
+
+    def done(self, key: str) -> bool:
+        """Whether run `key` finished (its stats were written, after its trajectory)."""
+        return (self.folder(key) / "stats.json").is_file()
+
+    def save(self, key: str, traj: Trajectory | None, stats: dict) -> Path:
+        """Store a run: trajectory first, stats last (the completion marker)."""
+        folder = self.folder(key)
+        if traj is not None:
+            traj.save(folder / "trajectory.npz")
+        write_json_atomic(folder / "stats.json", stats)
+        return folder
+
+    def load(self, key: str) -> tuple[Trajectory | None, dict]:
+        """The stored trajectory (None for a failed run) and stats of run `key`."""
+        folder = self.folder(key)
+        stats = json.loads((folder / "stats.json").read_text())
+        path = folder / "trajectory.npz"
+        return (Trajectory.load(path) if path.is_file() else None), stats

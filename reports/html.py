@@ -1,0 +1,302 @@
+"""One self-contained `report.html`: tables, plots and renders inline, no script, no external resource.
+
+Plots are PNG images embedded as base64 `data:` URIs, styling is one inline `<style>` block, so the file opens
+offline and can be mailed or archived alone. Sections (with these ids and headings):
+summary (gate verdicts, results), accuracy-vs-time, error-over-time, stick-slip, remeshing, stability, renders,
+any extra sections, provenance.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import html
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench.metrics import align_frames, error_over_time
+from reports.export import write_text_atomic
+from reports.plots import accuracy_vs_time_figure, error_over_time_figure, figure_png
+from reports.render import Renderer, render_surface, select_renderer, view_bounds
+from reports.table import PROVENANCE_COLUMNS, results_frame, variant_labels
+from scenarios.model import Plane
+from solvers.trajectory import Trajectory
+
+REFERENCE_COLOR = "#4a7fb5"
+OTHER_COLOR = "#d9822b"
+
+CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.5em auto; max-width: 1200px;
+       padding: 0 1em; color: #1d1d1d; }
+h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 1.8em; }
+nav ul { columns: 3; list-style: none; padding: 0; }
+table { border-collapse: collapse; margin: .6em 0; font-size: .85em; }
+th, td { border: 1px solid #ccc; padding: .25em .5em; text-align: right; }
+th { background: #f0f0f0; } td.text { text-align: left; }
+td.pass { background: #d7f0d7; } td.fail { background: #f6d0d0; }
+.banner { padding: .6em 1em; border-radius: 4px; font-weight: 600; }
+.banner.pass { background: #d7f0d7; } .banner.fail { background: #f6d0d0; }
+img { max-width: 100%; } figure { margin: .5em 0; } figcaption { font-size: .85em; color: #555; }
+.note { color: #555; font-size: .9em; } .scroll { overflow-x: auto; }
+"""
+
+
+@dataclass(frozen=True)
+class ScenarioRuns:
+    """Trajectories of one scenario for the error-over-time plot and the renders.
+
+    scenario: its name (a heading); reference: the full-space run; others: label -> run compared with it, each
+    on the reference's mesh; plane: drawn in the renders; reference_label: the reference's label.
+    """
+
+    scenario: str
+    reference: Trajectory
+    others: Mapping[str, Trajectory] = field(default_factory=dict)
+    plane: Plane | None = None
+    reference_label: str = "full"
+
+
+def _missing(value: object) -> bool:
+    """None, NaN, NaT or pd.NA."""
+    return value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value)))
+
+
+def _cell(value: object) -> str:
+    """A table cell's text: floats to 3 significant digits, booleans as yes/no, missing values as an en dash."""
+    if _missing(value):
+        return "&ndash;"
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.3g}"
+    return html.escape(str(value))
+
+
+def _verdict_class(value: object) -> str:
+    """CSS class of a verdict cell: pass for True / 'ok' / 'pass', fail for False / anything else, '' if missing."""
+    if _missing(value):
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return "pass" if value else "fail"
+    return "pass" if str(value).lower() in ("ok", "pass", "passed", "true") else "fail"
+
+
+def _table(frame: pd.DataFrame, verdicts: Sequence[str] = ()) -> str:
+    """HTML table of a frame; columns named in verdicts are coloured pass/fail."""
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in frame.columns)
+    body = []
+    for row in frame.itertuples(index=False):
+        cells = []
+        for col, value in zip(frame.columns, row):
+            classes = (_verdict_class(value) if col in verdicts else "", "text" if isinstance(value, str) else "")
+            cls = " ".join(c for c in classes if c)
+            cells.append(f'<td class="{cls}">{_cell(value)}</td>' if cls else f"<td>{_cell(value)}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return (f'<div class="scroll"><table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n' + "\n".join(body)
+            + "\n</tbody>\n</table></div>")
+
+
+def _png(data: bytes, alt: str, caption: str = "") -> str:
+    """An embedded PNG (data URI) in a figure element."""
+    uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+    cap = f"<figcaption>{html.escape(caption)}</figcaption>" if caption else ""
+    return f'<figure><img src="{uri}" alt="{html.escape(alt)}">{cap}</figure>'
+
+
+def _note(text: str) -> str:
+    """A paragraph of explanatory text."""
+    return f'<p class="note">{html.escape(text)}</p>'
+
+
+def _columns(frame: pd.DataFrame, wanted: Sequence[str]) -> pd.DataFrame:
+    """The wanted columns that the frame has, in that order."""
+    return frame[[c for c in wanted if c in frame.columns]]
+
+
+def _as_dict(verdict: object) -> dict[str, object]:
+    """A gate verdict (mapping, dataclass or plain object) as a dict."""
+    if isinstance(verdict, Mapping):
+        return dict(verdict)
+    if dataclasses.is_dataclass(verdict) and not isinstance(verdict, type):
+        return dataclasses.asdict(verdict)
+    return dict(vars(verdict))
+
+
+def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
+    """Gate banner and verdicts, then the key columns of every results row."""
+    parts = []
+    failed_runs = int((frame["status"].fillna("ok") != "ok").sum()) if "status" in frame else 0
+    if gates:
+        verdicts = pd.DataFrame([_as_dict(g) for g in gates])
+        n_pass = int(verdicts["passed"].astype(bool).sum())
+        ok = n_pass == len(verdicts)
+        parts.append(f'<p class="banner {"pass" if ok else "fail"}">Gates: {n_pass} of {len(verdicts)} passed'
+                     f"{'' if ok else f', {len(verdicts) - n_pass} failed'}.</p>")
+        parts.append("<h3>Gate verdicts</h3>" + _table(verdicts, verdicts=["passed"]))
+    else:
+        parts.append(_note("No gates were evaluated for these results."))
+    parts.append(_note(f"{len(frame)} result rows, {failed_runs} failed runs."))
+    summary = _columns(frame, ["suite", "scenario", "split", "mesh", "solver", "variant", "status", "pos_rmse_rel",
+                               "proj_rmse_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "stick_agree",
+                               "step_ms_median", "speedup"])
+    parts.append("<h3>Results</h3>" + _table(summary, verdicts=["status", "stick_agree"]))
+    return "\n".join(parts)
+
+
+def _accuracy_vs_time(frame: pd.DataFrame) -> str:
+    """The Pareto plot against step time, or against speed-up where no step times were measured."""
+    step = pd.to_numeric(frame.get("step_ms_median", pd.Series(dtype=float)), errors="coerce")
+    x, higher = ("step_ms_median", False) if (step > 0).any() else ("speedup", True)
+    fig = accuracy_vs_time_figure(frame, x=x, y="pos_rmse_rel", x_higher_is_better=higher)
+    return (_note("One point per solver variant (median over its scenarios); the red line is the Pareto front: "
+                  "no other variant is both faster and more accurate.")
+            + _png(figure_png(fig), "accuracy versus time", f"pos_rmse_rel versus {x}"))
+
+
+def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:
+    """One error-over-time plot per scenario."""
+    parts = []
+    for run in runs:
+        curves = {label: error_over_time(run.reference, traj) for label, traj in run.others.items()}
+        fig = error_over_time_figure(curves, f"{run.scenario}: error against {run.reference_label}")
+        parts.append(_png(figure_png(fig), f"error over time, {run.scenario}", run.scenario))
+    return "\n".join(parts)
+
+
+def _stick_slip(frame: pd.DataFrame) -> str:
+    """Stick/slip verdicts of each run and its reference."""
+    if "stick_ref" not in frame or frame["stick_ref"].isna().all():
+        return _note("No stick/slip verdicts (scenes without a plane).")
+    rows = frame[frame["stick_ref"].notna()]
+    agree = rows["stick_agree"].astype(bool)
+    table = _columns(rows, ["scenario", "mesh", "solver", "variant", "stick_ref", "stick", "stick_agree",
+                            "end_speed_ref", "end_speed"])
+    return (_note(f"{int(agree.sum())} of {len(rows)} runs agree with the reference on whether the body ends at "
+                  "rest on the plane (end_speed: mean centre-of-mass speed along the plane over the last 10% of "
+                  "the run, m/s).")
+            + _table(table, verdicts=["stick_agree"]))
+
+
+def _remeshing(frame: pd.DataFrame) -> str:
+    """Error of each model on its training mesh and on the other meshes it ran on, and their ratio."""
+    needed = {"train_mesh", "mesh", "solver", "pos_rmse_rel"}
+    if not needed <= set(frame.columns):
+        return _note("No remeshing rows (the results have no train_mesh column).")
+    rows = frame[frame["train_mesh"].notna() & (frame["train_mesh"].astype(str) != "")].copy()
+    if not (rows["mesh"] != rows["train_mesh"]).any():
+        return _note("No remeshing rows (no run on a mesh other than its model's training mesh).")
+    rows["solver variant"] = variant_labels(rows)
+    rows["pos_rmse_rel"] = pd.to_numeric(rows["pos_rmse_rel"], errors="coerce")
+    keys = ["solver variant", "train_mesh"] + (["split"] if "split" in rows else [])
+    table = (rows.groupby(keys + ["mesh"], dropna=False)["pos_rmse_rel"]
+             .agg(runs="count", median_pos_rmse_rel="median").reset_index())
+    on_train = (table.loc[table["mesh"] == table["train_mesh"], keys + ["median_pos_rmse_rel"]]
+                .rename(columns={"median_pos_rmse_rel": "on_training_mesh"}))
+    table = table.merge(on_train, on=keys, how="left")
+    table["ratio_to_training_mesh"] = table["median_pos_rmse_rel"] / table.pop("on_training_mesh")
+    return (_note("Median pos_rmse_rel of each model on its training mesh and on other meshes of the same shape; "
+                  "the ratio is other mesh / training mesh (1 = remeshing costs nothing).")
+            + _table(table))
+
+
+def _stability(frame: pd.DataFrame) -> str:
+    """Stability metrics and failure reasons of every run."""
+    table = _columns(frame, ["scenario", "mesh", "solver", "variant", "status", "finite", "max_penetration_rel",
+                             "inverted_tets", "inverted_tets_frame_max", "energy_ratio_max", "failure"])
+    return (_note("finite: every stored value finite; max_penetration_rel: deepest point below the plane / L; "
+                  "inverted_tets: tets with det F <= 0 in some frame (and most in one frame); energy_ratio_max: "
+                  "largest total energy / initial (kinetic + elastic + gravity, > 1 means energy grew).")
+            + _table(table, verdicts=["status", "finite"]))
+
+
+def _placeholder_cell(text: str) -> str:
+    """A table cell that says why a picture is missing."""
+    return f'<td class="text fail">{html.escape(text)}</td>'
+
+
+def _renders(runs: Sequence[ScenarioRuns], renderer: Renderer, key_frames: int) -> str:
+    """Per scenario, a table of pictures: one row per key frame, the reference then the other runs."""
+    parts = [_note(f"Rendered with {renderer.detail}. Same camera for every picture of a scenario.")]
+    for run in runs:
+        ref = run.reference
+        keys = np.unique(np.round(np.linspace(0, ref.n_frames - 1, max(key_frames, 1))).astype(int))
+        bounds = view_bounds(ref.x)
+        columns = {run.reference_label: (ref, REFERENCE_COLOR), **{k: (v, OTHER_COLOR) for k, v in run.others.items()}}
+        head = "<th>t [s]</th>" + "".join(f"<th>{html.escape(label)}</th>" for label in columns)
+        body = []
+        for k in keys:
+            cells = [f"<td>{ref.t[k]:.3g}</td>"]
+            for traj, color in columns.values():
+                cells.append(_render_cell(traj, ref.t[k], bounds, run.plane, renderer, color))
+            body.append("<tr>" + "".join(cells) + "</tr>")
+        parts.append(f'<h3>{html.escape(run.scenario)}</h3>\n<div class="scroll"><table>\n'
+                     f"<thead><tr>{head}</tr></thead>\n<tbody>\n" + "\n".join(body) + "\n</tbody>\n</table></div>")
+    return "\n".join(parts)
+
+
+def _render_cell(traj: Trajectory, t: float, bounds: np.ndarray, plane: Plane | None, renderer: Renderer,
+                 color: str) -> str:
+    """A table cell with the render of traj's frame at time t, or why there is none."""
+    try:
+        _, (k,) = align_frames(np.array([t]), traj.t)
+    except ValueError:
+        return _placeholder_cell(f"no frame at t = {t:.3g} s")
+    if not np.isfinite(traj.x[k]).all():
+        return _placeholder_cell("non-finite positions")
+    png = render_surface(traj.x[k], traj.surface, bounds=bounds, plane=plane, renderer=renderer, color=color)
+    return "<td>" + _png(png, f"frame at t = {t:.3g} s") + "</td>"
+
+
+def _provenance(frame: pd.DataFrame, renderer: Renderer | None) -> str:
+    """The distinct provenance values of the results, and the renderer that made the pictures."""
+    rows = []
+    for col in [c for c in PROVENANCE_COLUMNS if c in frame] + [c for c in frame if c.endswith("_version")
+                                                                  and c not in PROVENANCE_COLUMNS]:
+        values = [str(v) for v in frame[col].dropna().unique() if str(v) != ""]
+        rows.append({"field": col, "value": ", ".join(values)})
+    if renderer is not None:
+        rows.append({"field": "renderer", "value": renderer.detail})
+    return _table(pd.DataFrame(rows, columns=["field", "value"])) if rows else _note("No provenance recorded.")
+
+
+def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], out_dir: str | os.PathLike, *,
+                      gates: Sequence[object] = (), runs: Sequence[ScenarioRuns] = (),
+                      extra_sections: Sequence[tuple[str, str]] = (), title: str = "frictionbench report",
+                      renderer: str = "auto", key_frames: int = 3) -> Path:
+    """Write `out_dir/report.html` atomically and return its path.
+
+    results: the results table (a DataFrame as read from results.csv, or its rows).
+    gates: gate verdicts, each a mapping, dataclass or object with at least a boolean `passed`; every field
+        becomes a column of the verdict table.
+    runs: trajectories for the error-over-time plots and the renders (none: those sections say so).
+    extra_sections: (heading, HTML fragment) pairs appended before the provenance; the fragments are inserted
+        as given, so they must be trusted and self-contained.
+    renderer: `auto`, `vtk` or `matplotlib` (see `reports.render.select_renderer`); key_frames: renders per run.
+    """
+    frame = results.copy() if isinstance(results, pd.DataFrame) else results_frame(results)
+    chosen = select_renderer(renderer) if runs else None
+    no_runs = _note("No trajectories were given to the report.")
+    sections = [
+        ("summary", "Summary", _summary(frame, gates)),
+        ("accuracy-vs-time", "Accuracy versus time", _accuracy_vs_time(frame)),
+        ("error-over-time", "Error over time", _error_over_time(runs) if runs else no_runs),
+        ("stick-slip", "Stick/slip agreement", _stick_slip(frame)),
+        ("remeshing", "Remeshing", _remeshing(frame)),
+        ("stability", "Stability", _stability(frame)),
+        ("renders", "Renders: full versus reduced", _renders(runs, chosen, key_frames) if chosen else no_runs),
+        *((f"extra-{i}", heading, fragment) for i, (heading, fragment) in enumerate(extra_sections)),
+        ("provenance", "Provenance", _provenance(frame, chosen)),
+    ]
+    nav = "".join(f'<li><a href="#{sid}">{html.escape(heading)}</a></li>' for sid, heading, _ in sections)
+    body = "\n".join(f'<section id="{sid}">\n<h2>{html.escape(heading)}</h2>\n{content}\n</section>'
+                     for sid, heading, content in sections)
+    page = (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+            f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
+            f"<h1>{html.escape(title)}</h1>\n<nav><ul>{nav}</ul></nav>\n{body}\n</body>\n</html>\n")
+    return write_text_atomic(Path(out_dir) / "report.html", page)

@@ -1,0 +1,353 @@
+"""Suites: a scenario matrix (the cartesian product of axes applied to a base scenario) with a train/test split.
+
+Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
+
+    [suite]
+    name = "quick"                  # members are named `<suite>/<labels joined by _>`
+    description = "..."
+
+    [base]                          # a scenario dict (`scenarios.load` schema) without `name`, shared by all
+    [base.material]
+    youngs_modulus = 2.0e5
+
+    [[axis]]                        # a field axis: one dotted field and its values
+    name = "mu"
+    field = "plane.friction"
+    values = [0.1, 0.5]
+    labels = ["lo", "hi"]           # optional; default: a string value itself, a number `<name><value>` (mu0.1);
+                                    # required for any other value (lists, booleans)
+
+    [[axis]]                        # an override axis: every value is a table of overrides with its `label`
+    name = "plane"
+    values = [{ label = "p1", "plane.normal" = [1.0, 5.0, 2.0], "plane.offset" = -1.5 }]
+
+    [split]                         # optional: product members whose labels match any rule (all of its
+    test = [{ plane = "p1" }]       # axis = label pairs) are test members, all others train
+
+    [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
+    labels = { plane = "p4", mu = "mu0.35" }
+    across = ["mesh"]               # optional: one member per value of these axes, whose overrides apply first
+    split = "test"                  # default "test"
+    overrides = { "plane.normal" = [-1.0, 5.0, -2.0], "plane.friction" = 0.35 }
+
+Overrides use dotted keys (`"plane.friction"`, or TOML's own dotted keys): a table merges into the table it
+lands on key by key, any other value replaces what was there, so `plane = false` removes the plane and a `plane.*`
+key on a base without a plane creates one. They apply in order: base, axes in order, then (for an extra) its
+crossed axes and its own overrides; a later value for the same field wins. A member's labels map axis names (and
+an extra's own label keys) to labels; its name joins the labels in axis order, an extra's own labels last. A
+suite without axes has only its extras. Members without a `description` get the suite's.
+
+Every member is validated by `scenarios.load.scenario_from_dict`; errors name the suite file and the member.
+"""
+
+from __future__ import annotations
+
+import itertools
+import numbers
+import os
+import re
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from scenarios.errors import ScenarioError
+from scenarios.load import NAME_PART, read_toml, scenario_from_dict
+from scenarios.model import Scenario
+
+Split = Literal["train", "test"]
+SPLITS: tuple[Split, ...] = ("train", "test")
+SUITES_DIR = Path(__file__).parent / "suites"
+SUITE_KEYS = ("suite", "base", "axis", "split", "extra")
+
+_LABEL_RE = re.compile(NAME_PART)
+
+
+@dataclass(frozen=True)
+class SuiteMember:
+    """One scenario of a suite, its split and its labels (axis name -> label, e.g. {"mesh": "cheese"})."""
+
+    scenario: Scenario
+    split: Split
+    labels: Mapping[str, str]
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A named, validated list of scenarios with a train/test split."""
+
+    name: str
+    description: str
+    scenarios: tuple[SuiteMember, ...]
+
+    @property
+    def train(self) -> tuple[SuiteMember, ...]:
+        """The training members, in suite order."""
+        return tuple(m for m in self.scenarios if m.split == "train")
+
+    @property
+    def test(self) -> tuple[SuiteMember, ...]:
+        """The held-out members, in suite order."""
+        return tuple(m for m in self.scenarios if m.split == "test")
+
+
+@dataclass(frozen=True)
+class _Axis:
+    """A parsed axis: its name and, per value, the label and the nested overrides."""
+
+    name: str
+    values: tuple[tuple[str, dict[str, Any]], ...]
+
+
+@dataclass(frozen=True)
+class _Draft:
+    """A member before validation: its name, scenario dict, split and labels."""
+
+    name: str
+    scenario: dict[str, Any]
+    split: Split
+    labels: dict[str, str]
+
+
+def list_suites() -> list[str]:
+    """Names of the shipped suites."""
+    return sorted(p.stem for p in SUITES_DIR.glob("*.toml"))
+
+
+def load_suite(name_or_path: str | os.PathLike[str]) -> Suite:
+    """Load a shipped suite by name (`quick`) or any suite file by path, expanded and validated."""
+    text = os.fspath(name_or_path)
+    if isinstance(name_or_path, os.PathLike) or text.endswith(".toml") or os.sep in text or "/" in text:
+        path = Path(text)
+    else:
+        path = SUITES_DIR / f"{text}.toml"
+        if not path.is_file():
+            raise ScenarioError("suite", text, f"no such suite; shipped suites: {list_suites()}")
+    return suite_from_dict(read_toml(path), source=str(path), base_dir=path.parent)
+
+
+def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
+                    base_dir: str | os.PathLike[str] | None = None) -> Suite:
+    """Expand a suite dict (the format above) and validate every member.
+
+    source: where the dict came from, appended to error messages.
+    base_dir: folder that relative `mesh.path` entries resolve against (default: the working directory).
+    """
+    try:
+        name, description, drafts = _expand(d)
+    except ScenarioError as err:
+        raise type(err)(err.field, err.value, f"{err.reason} [{source}]") from None
+    members = tuple(
+        SuiteMember(scenario_from_dict(draft.scenario, source=f"{source}, member {draft.name}", base_dir=base_dir),
+                    draft.split, draft.labels)
+        for draft in drafts)
+    return Suite(name=name, description=description, scenarios=members)
+
+
+def _expand(d: object) -> tuple[str, str, list[_Draft]]:
+    """Check the suite's structure and build every member's scenario dict (not yet validated)."""
+    t = _table(d, "", SUITE_KEYS)
+    header = _table(t.get("suite"), "suite", ("name", "description"))
+    name = _label(header.get("name"), "suite.name")
+    description = header.get("description", "")
+    if not isinstance(description, str):
+        raise ScenarioError("suite.description", description, "expected a string")
+    base = dict(_table(t.get("base", {}), "base", None))
+    if "name" in base:
+        raise ScenarioError("base.name", base["name"], "members are named by the suite, not by the base")
+    base.setdefault("description", description)
+    axes = _axes(t.get("axis", []))
+    rules = _split_rules(t.get("split", {}), axes)
+    drafts = list(_product(name, base, axes, rules))
+    drafts += _extras(t.get("extra", []), name, base, axes)
+    seen: set[str] = set()
+    for draft in drafts:
+        if draft.name in seen:
+            raise ScenarioError("name", draft.name, "two members of the suite have this name")
+        seen.add(draft.name)
+    if not drafts:
+        raise ScenarioError("axis", [], "the suite has no members: give at least one axis or extra")
+    return name, description, drafts
+
+
+def _product(suite: str, base: dict[str, Any], axes: Sequence[_Axis],
+             rules: Sequence[Mapping[str, str]]) -> Iterator[_Draft]:
+    """The members of the cartesian product of the axes; none without axes."""
+    if not axes:
+        return
+    for combo in itertools.product(*(axis.values for axis in axes)):
+        labels = {axis.name: label for axis, (label, _) in zip(axes, combo)}
+        scenario = base
+        for _, overrides in combo:
+            scenario = _merged(scenario, overrides)
+        split: Split = "test" if any(_matches(labels, rule) for rule in rules) else "train"
+        yield _draft(suite, scenario, split, labels)
+
+
+def _extras(raw: object, suite: str, base: dict[str, Any], axes: Sequence[_Axis]) -> list[_Draft]:
+    """The [[extra]] members, each repeated over the axes it is crossed with."""
+    by_name = {axis.name: axis for axis in axes}
+    drafts = []
+    for i, entry in enumerate(_array(raw, "extra")):
+        where = f"extra[{i}]"
+        t = _table(entry, where, ("labels", "across", "split", "overrides"))
+        own = _table(t.get("labels"), f"{where}.labels", None)
+        if not own:
+            raise ScenarioError(f"{where}.labels", own, "an extra needs at least one label to be named by")
+        own_labels = {_label(k, f"{where}.labels"): _label(v, f"{where}.labels.{k}") for k, v in own.items()}
+        split = t.get("split", "test")
+        if split not in SPLITS:
+            raise ScenarioError(f"{where}.split", split, f"expected one of {list(SPLITS)}")
+        across = _array(t.get("across", []), f"{where}.across")
+        for axis_name in across:
+            if axis_name not in by_name:
+                raise ScenarioError(f"{where}.across", axis_name, f"not an axis of this suite {list(by_name)}")
+            if axis_name in own_labels:
+                raise ScenarioError(f"{where}.labels.{axis_name}", own_labels[axis_name],
+                                    "this label comes from the crossed axis")
+        crossed = [axis for axis in axes if axis.name in across]
+        overrides = _overrides(t.get("overrides", {}), f"{where}.overrides")
+        for combo in itertools.product(*(axis.values for axis in crossed)):
+            labels = {axis.name: label for axis, (label, _) in zip(crossed, combo)} | own_labels
+            scenario = base
+            for _, axis_overrides in combo:
+                scenario = _merged(scenario, axis_overrides)
+            drafts.append(_draft(suite, _merged(scenario, overrides), split, labels))
+    return drafts
+
+
+def _draft(suite: str, scenario: dict[str, Any], split: Split, labels: dict[str, str]) -> _Draft:
+    """A named draft member: `<suite>/<labels joined by _>`."""
+    name = f"{suite}/{'_'.join(labels.values())}"
+    return _Draft(name=name, scenario={**scenario, "name": name}, split=split, labels=labels)
+
+
+def _axes(raw: object) -> list[_Axis]:
+    """The [[axis]] entries: field axes and override axes, names and labels unique."""
+    axes: list[_Axis] = []
+    for i, entry in enumerate(_array(raw, "axis")):
+        where = f"axis[{i}]"
+        t = _table(entry, where, ("name", "field", "values", "labels"))
+        name = _label(t.get("name"), f"{where}.name")
+        if any(axis.name == name for axis in axes):
+            raise ScenarioError(f"{where}.name", name, "two axes have this name")
+        values = _array(t.get("values"), f"{where}.values")
+        if not values:
+            raise ScenarioError(f"{where}.values", values, "an axis needs at least one value")
+        if "field" in t:
+            pairs = _field_values(t, name, values, where)
+        else:
+            if "labels" in t:
+                raise ScenarioError(f"{where}.labels", t["labels"], "override values carry their own `label`")
+            pairs = [_override_value(v, f"{where}.values[{j}]") for j, v in enumerate(values)]
+        labels = [label for label, _ in pairs]
+        for j, label in enumerate(labels):
+            if label in labels[:j]:
+                raise ScenarioError(f"{where}.values[{j}]", label, "two values of this axis have this label")
+        axes.append(_Axis(name=name, values=tuple(pairs)))
+    return axes
+
+
+def _field_values(t: Mapping[str, Any], name: str, values: list[Any],
+                  where: str) -> list[tuple[str, dict[str, Any]]]:
+    """(label, overrides) per value of a field axis."""
+    field = t["field"]
+    if not isinstance(field, str):
+        raise ScenarioError(f"{where}.field", field, "expected a dotted field name")
+    if "labels" in t:
+        labels = _array(t["labels"], f"{where}.labels")
+        if len(labels) != len(values):
+            raise ScenarioError(f"{where}.labels", labels, f"expected {len(values)} labels, one per value")
+    else:
+        labels = [_default_label(name, v, f"{where}.values[{j}]") for j, v in enumerate(values)]
+    return [(_label(label, f"{where}.labels[{j}]"), _overrides({field: v}, f"{where}.field"))
+            for j, (label, v) in enumerate(zip(labels, values))]
+
+
+def _override_value(value: object, where: str) -> tuple[str, dict[str, Any]]:
+    """(label, overrides) of one value of an override axis."""
+    t = _table(value, where, None)
+    if "label" not in t:
+        raise ScenarioError(f"{where}.label", None, "missing: an override value needs a label")
+    label = _label(t["label"], f"{where}.label")
+    return label, _overrides({k: v for k, v in t.items() if k != "label"}, where)
+
+
+def _default_label(axis: str, value: object, where: str) -> str:
+    """A string value itself, `<axis><value>` for a number; other values need explicit labels."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return f"{axis}{value}"
+    raise ScenarioError(where, value, "give the axis `labels` for values that are neither strings nor numbers")
+
+
+def _split_rules(raw: object, axes: Sequence[_Axis]) -> list[dict[str, str]]:
+    """The [split] test rules: tables of axis name -> label, each naming existing axes and labels."""
+    t = _table(raw, "split", ("test",))
+    rules = []
+    for i, rule in enumerate(_array(t.get("test", []), "split.test")):
+        where = f"split.test[{i}]"
+        conditions = _table(rule, where, tuple(axis.name for axis in axes))
+        if not conditions:
+            raise ScenarioError(where, conditions, "an empty rule would match every member")
+        for axis in axes:
+            if axis.name in conditions and conditions[axis.name] not in [label for label, _ in axis.values]:
+                raise ScenarioError(f"{where}.{axis.name}", conditions[axis.name],
+                                    f"not a label of axis {axis.name!r}")
+        rules.append(dict(conditions))
+    return rules
+
+
+def _matches(labels: Mapping[str, str], rule: Mapping[str, str]) -> bool:
+    """Whether every axis = label pair of the rule holds."""
+    return all(labels[axis] == label for axis, label in rule.items())
+
+
+def _overrides(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """Dotted-key overrides as one nested dict (`{"plane.friction": 0.1}` -> `{"plane": {"friction": 0.1}}`)."""
+    nested: dict[str, Any] = {}
+    for key, value in _table(raw, where, None).items():
+        parts = key.split(".") if isinstance(key, str) else []
+        if not parts or not all(parts):
+            raise ScenarioError(f"{where}.{key}", value, "expected a dotted field name like `plane.friction`")
+        for part in reversed(parts):
+            value = {part: value}
+        nested = _merged(nested, value)
+    return nested
+
+
+def _merged(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of `base` with `over` applied: tables merge key by key, any other value replaces."""
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _merged(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _table(value: object, field: str, allowed: Sequence[str] | None) -> Mapping[str, Any]:
+    """`value` as a table (`field` "" for the top level); with `allowed`, an unknown key is an error naming it."""
+    if not isinstance(value, Mapping):
+        raise ScenarioError(field or "<suite>", value, "expected a table")
+    for key in value:
+        if allowed is not None and key not in allowed:
+            where = f"{field}.{key}" if field else str(key)
+            raise ScenarioError(where, value[key], f"unknown key (expected one of {list(allowed)})")
+    return value
+
+
+def _array(value: object, field: str) -> list[Any]:
+    """`value` as a list."""
+    if not isinstance(value, (list, tuple)):
+        raise ScenarioError(field, value, "expected a list")
+    return list(value)
+
+
+def _label(value: object, field: str) -> str:
+    """A file-name-safe label (letters, digits, `_ . + -`, starting with a letter or digit)."""
+    if not isinstance(value, str) or not _LABEL_RE.fullmatch(value):
+        raise ScenarioError(field, value, f"expected a name matching {NAME_PART!r}")
+    return value

@@ -1,0 +1,80 @@
+"""Linear-subspace baselines for the reduced solver: bases W (n, 3, r) with u(X_i) = W[i] q (DESIGN.md section 7).
+
+- `affine_basis`: the 12 exact affine fields (every rigid motion and every homogeneous strain), mesh-free;
+- `pod_basis`: proper orthogonal decomposition of training displacements, bound to the training mesh;
+- `full_basis`: the complete per-vertex basis (the reduced solver then equals the full-space one).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def standardised_positions(X: np.ndarray) -> np.ndarray:
+    """Xhat = (X - mean) / std per axis, (n, 3) dimensionless (axes with zero spread are only centred)."""
+    std = X.std(axis=0)
+    return (X - X.mean(axis=0)) / np.where(std > 0.0, std, 1.0)
+
+
+def affine_basis(X: np.ndarray) -> np.ndarray:
+    """The 12 affine displacement fields at rest positions X (n, 3): W (n, 3, 12) [m per unit q].
+
+    Columns 0..2 are the translations e_c; column 3 + 3 c + j is e_c Xhat_j (Xhat = standardised X), so
+    W q = t + A Xhat with t = q[:3], A = q[3:].reshape(3, 3) [m].
+    """
+    Xh = standardised_positions(X)
+    n = X.shape[0]
+    W = np.zeros((n, 3, 12))
+    for c in range(3):
+        W[:, c, c] = 1.0
+        W[:, c, 3 + 3 * c: 6 + 3 * c] = Xh
+    return W
+
+
+def full_basis(n: int) -> np.ndarray:
+    """The complete per-vertex basis W (n, 3, 3n): W[i, a, 3 i + a] = 1, so q is the flattened displacement."""
+    return np.eye(3 * n).reshape(n, 3, 3 * n)
+
+
+def mass_orthonormalise(W: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """Columns of W (n, 3, r) made orthonormal in the lumped-mass inner product (W^T M W = I), same span."""
+    s = np.sqrt(mass)[:, None, None]
+    Q, _ = np.linalg.qr((s * W).reshape(-1, W.shape[2]))
+    return Q.reshape(W.shape) / s
+
+
+def pod_basis(trajectories_u: np.ndarray, r: int, mass: np.ndarray, affine_X: np.ndarray | None = None
+              ) -> np.ndarray:
+    """Proper orthogonal decomposition of training displacements: W (n, 3, r), mass-orthonormal (W^T M W = I).
+
+    trajectories_u: (F, n, 3) displacements u = x - X [m] of all training frames stacked (no mean is removed:
+    q = 0 is the rest state); mass: (n,) lumped masses [kg]. The modes are the leading left singular vectors of
+    M^(1/2) U (U = the frames as columns), i.e. the best rank-r fit of the frames in the mass norm.
+
+    Affine part: by default NOT included -- plain POD, the classic mesh-bound baseline, which needs many modes
+    for large rotations. With the rest positions `affine_X` (n, 3), columns 0..11 span the 12 affine fields
+    exactly (`affine_basis`) and columns 12..r-1 are the POD modes of what the frames have beyond their
+    mass-orthogonal projection onto the affine fields (requires r >= 12).
+    """
+    if affine_X is None:
+        return _pod_modes(trajectories_u, r, mass)
+    if r < 12:
+        raise ValueError(f"r = {r}: an affine-plus-POD basis needs r >= 12")
+    A = mass_orthonormalise(affine_basis(affine_X), mass)
+    if r == 12:
+        return A
+    U = trajectories_u.reshape(trajectories_u.shape[0], -1)  # (F, 3n)
+    Af = A.reshape(-1, 12)
+    residual = U - (U * np.repeat(mass, 3)) @ Af @ Af.T
+    modes = _pod_modes(residual.reshape(trajectories_u.shape), r - 12, mass)
+    return mass_orthonormalise(np.concatenate([A, modes], axis=2), mass)
+
+
+def _pod_modes(trajectories_u: np.ndarray, r: int, mass: np.ndarray) -> np.ndarray:
+    """Leading r mass-orthonormal POD modes (n, 3, r) of frames (F, n, 3)."""
+    F, n, _ = trajectories_u.shape
+    if not 1 <= r <= min(F, 3 * n):
+        raise ValueError(f"r = {r}: POD of {F} frames of {n} vertices gives at most {min(F, 3 * n)} modes")
+    s = np.sqrt(np.repeat(mass, 3))
+    Phi, _, _ = np.linalg.svd(s[:, None] * trajectories_u.reshape(F, -1).T, full_matrices=False)
+    return (Phi[:, :r] / s[:, None]).reshape(n, 3, r)

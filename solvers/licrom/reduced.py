@@ -1,0 +1,441 @@
+"""LiCROM's online latent dynamics: backward Euler in the linear subspace x = X + W q (DESIGN.md section 7).
+
+Each step minimises the incremental potential of the full-space solver restricted to the subspace,
+
+    E(q) = 1/(2h^2) (q - q_hat)^T M_r (q - q_hat) - g_r . q + sum_c w_c V_c Psi(F_c(q)) + E_contact + D_friction,
+
+with q_hat = q^n + h qdot^n, M_r = W^T M W (lumped M, factorised once), g_r = sum_i m_i W_i^T g, cubature tets
+(c, w_c) whose F_c(q) = F_c(0) + B_c q is linear in q (B_c = dvec F_c/dq constant), and the contact and friction
+laws of solvers/physics at the surface sample points x_p = X_p + W_p q (gradient W_p^T g_p, Hessian
+W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the step, as the full solver does.
+
+Schemes:
+- "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky),
+  Armijo backtracking with the full solver's round-off slack, and, for the barrier law, a step cap that keeps
+  every contact point above the plane. Converged when |W dq|_inf / h < tol * L over all mesh vertices (the
+  full solver's measure; decoding dq costs one (3n x r) product).
+- "projected_gradient": the paper's scheme (PAPER.txt IV.B). The sample points are the vertices of the
+  cubature tets, each carrying the cubature estimate of its lumped mass w_i = rho/4 sum_{c owns i} w_c V_c,
+  plus the contact points (force only, no mass). Every iteration decodes the points, evaluates the full-space
+  gradient g_i of the incremental potential there (inertia w_i/h^2 (x_i - x_hat_i), gravity -w_i g, the
+  cubature tets' elastic forces, contact and friction), forms the increments du_i = alpha h^2 g_i / w_i and
+  projects them by the pre-factorised weighted least-squares system (sum_i w_i W_i^T W_i) dq = sum_i w_i W_i^T
+  du_i, then q <- q - dq. alpha = 1 solves the inertia + gravity part in one iteration; stiff elasticity,
+  contact and friction make it a preconditioned gradient descent that needs alpha < 2 / (1 + h^2 k / m) for the
+  stiffest mode and then converges slowly. Stops when |W dq|_inf / h < tol * L or after max_iter iterations.
+
+The solver works on the full `State` of solvers/simulate.py: it keeps (q, qdot) itself and writes
+state_out.x = X + W q, state_out.v = W qdot. A state_in that is not the one it produced last is first
+projected to the subspace (mass-weighted least squares). `q_history` holds (t, q) of every step since the last
+projection; `simulate_reduced` runs solvers.simulate.simulate and fills the trajectory's q per stored frame.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import cho_factor, cho_solve
+
+from solvers.full.solver import StepStats
+from solvers.licrom import kernels as K
+from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
+from solvers.model import Model, State
+from solvers.physics import contact as pc
+from solvers.physics import friction as pf
+from solvers.physics.material import shape_gradients
+from solvers.simulate import simulate
+from solvers.trajectory import Trajectory
+
+SPARSE_DENSITY = 0.1
+"""Jacobians B with at most this fraction of non-zeros (local bases such as `full_basis`) use sparse products."""
+
+
+@dataclass
+class ReducedState:
+    """Latent coordinates q (r,) [unit of W's columns], their rate qdot (r,) [1/s] and the time t [s]."""
+
+    q: np.ndarray
+    qdot: np.ndarray
+    t: float = 0.0
+
+
+@dataclass
+class ReducedModel:
+    """Static data of the reduced problem (float64).
+
+    W: (n, 3, r) basis at the mesh vertices [m per unit q]; M_r: (r, r) reduced mass [kg]; gravity_q: (r,)
+    reduced weight g_r [N] (zeros without gravity); cub_ids, cub_w: (c,) cubature tets and weights; wV: (c,)
+    w_c V_c [m^3]; F0: (c, 3, 3) rest deformation gradients; B: (c, 9, r) dvec(F_c)/dq; B_sparse: the same
+    as a (9c, r) CSR matrix when sparse enough, else None; points, area: (p,) contact sample vertices and their
+    area weights [m^2]; Xp: (p, 3) their rest positions; Wp: (p, 3, r) the basis there.
+    """
+
+    model: Model
+    W: np.ndarray
+    M_r: np.ndarray
+    M_cho: tuple
+    gravity_q: np.ndarray
+    cub_ids: np.ndarray
+    cub_w: np.ndarray
+    wV: np.ndarray
+    F0: np.ndarray
+    B: np.ndarray
+    B_sparse: sp.csr_matrix | None
+    points: np.ndarray
+    area: np.ndarray
+    Xp: np.ndarray
+    Wp: np.ndarray
+
+    @classmethod
+    def build(cls, model: Model, W: np.ndarray, cubature: Cubature | None = None,
+              contact_samples: int | None = None, seed: int = 0) -> "ReducedModel":
+        """Precompute everything for the basis W (n, 3, r) on `model`'s mesh.
+
+        cubature: (tet ids, weights), None for every tet with weight 1. contact_samples: keep that many of the
+        model's contact points (uniformly at random, `seed`), areas re-weighted to keep the total; None keeps all.
+        """
+        n, r = model.n, W.shape[2]
+        if W.shape != (n, 3, r):
+            raise ValueError(f"basis shape {W.shape}: expected ({n}, 3, r) for this mesh")
+        W = np.ascontiguousarray(W, dtype=np.float64)
+        Wf = W.reshape(3 * n, r)
+        M_r = Wf.T @ (np.repeat(model.mass, 3)[:, None] * Wf)
+        g = model.gravity if model.has("gravity") else np.zeros(3)
+        ids, w = all_tets(model) if cubature is None else (np.asarray(c) for c in cubature)
+        F0, B = deformation_jacobians(model, W, ids)
+        Bf = B.reshape(-1, r)
+        dense_enough = np.count_nonzero(Bf) > SPARSE_DENSITY * Bf.size
+        points, area = _contact_samples(model, contact_samples, seed)
+        return cls(model=model, W=W, M_r=M_r, M_cho=cho_factor(M_r), gravity_q=np.einsum("n,nak,a->k", model.mass, W, g),
+                   cub_ids=ids.astype(np.int64), cub_w=w.astype(np.float64), wV=w * model.vol[ids], F0=F0, B=B,
+                   B_sparse=None if dense_enough else sp.csr_matrix(Bf), points=points, area=area,
+                   Xp=model.X[points], Wp=np.ascontiguousarray(W[points]))
+
+    @property
+    def r(self) -> int:
+        """Subspace dimension."""
+        return int(self.W.shape[2])
+
+    def decode(self, q: np.ndarray) -> np.ndarray:
+        """Displacements W q at the mesh vertices, (n, 3) [m]."""
+        return (self.W.reshape(-1, self.r) @ q).reshape(-1, 3)
+
+    def project(self, u: np.ndarray) -> np.ndarray:
+        """Mass-weighted least-squares coordinates of a vertex field u (n, 3): argmin_q |W q - u|_M, (r,)."""
+        Wf = self.W.reshape(-1, self.r)
+        return cho_solve(self.M_cho, Wf.T @ (np.repeat(self.model.mass, 3) * u.ravel()))
+
+    def point_positions(self, q: np.ndarray) -> np.ndarray:
+        """Contact sample positions X_p + W_p q, (p, 3) [m]."""
+        return self.Xp + (self.Wp.reshape(-1, self.r) @ q).reshape(-1, 3)
+
+    def deformation_gradients(self, q: np.ndarray) -> np.ndarray:
+        """F_c(q) at the cubature tets, (c, 3, 3)."""
+        return self.F0 + (self.B.reshape(-1, self.r) @ q).reshape(-1, 3, 3)
+
+    def elastic(self, q: np.ndarray, mode: int) -> tuple[float, np.ndarray | None, np.ndarray | None]:
+        """Cubature elastic energy [J], its gradient (r,) [N] (mode >= STRESS) and PSD-projected Hessian (r, r)
+        [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c)."""
+        m = self.model
+        psi, P, H9 = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode)
+        E = float(self.wV @ psi)
+        if mode == K.ENERGY:
+            return E, None, None
+        Bf = self.B.reshape(-1, self.r)
+        g = Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
+        if mode == K.STRESS:
+            return E, g, None
+        Hs = self.wV[:, None, None] * H9
+        if self.B_sparse is None:
+            H = Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
+        else:
+            c = Hs.shape[0]
+            blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
+            H = (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
+        return E, g, H
+
+
+def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The contact points and area weights, or a uniform random subset of `count` of them with the areas scaled
+    so that their sum (the surface area) is unchanged."""
+    p = model.points.size
+    if count is None or count >= p:
+        return model.points, model.area
+    if count < 1:
+        raise ValueError(f"contact_samples = {count}: need at least one point")
+    keep = np.sort(np.random.default_rng(seed).choice(p, size=count, replace=False))
+    return model.points[keep], model.area[keep] * (model.area.sum() / model.area[keep].sum())
+
+
+@dataclass
+class _Step:
+    """Per-step constants: dt h [s], q^n and q_hat (r,), contact points at the start x_prev (p, 3) [m] and the
+    lagged normal pressure fn (p,) [Pa] (None without friction)."""
+
+    h: float
+    q_prev: np.ndarray
+    q_hat: np.ndarray
+    x_prev: np.ndarray
+    fn: np.ndarray | None
+
+
+@dataclass
+class _SamplePoints:
+    """The projected-gradient scheme's mass-carrying sample points: the cubature tets' vertices.
+
+    vertices: (k,) mesh vertex ids; weight: (k,) cubature lumped masses [kg]; local: (c, 4) index of each
+    cubature tet's vertices in `vertices`; grad_shape: (c, 4, 3) shape gradients g_a [1/m]; S_cho: Cholesky
+    factor of sum_i w_i W_i^T W_i (r, r) [kg].
+    """
+
+    vertices: np.ndarray
+    weight: np.ndarray
+    local: np.ndarray
+    grad_shape: np.ndarray
+    S_cho: tuple
+
+    @classmethod
+    def build(cls, rm: ReducedModel) -> "_SamplePoints":
+        """Sample points of the cubature of `rm`."""
+        m = rm.model
+        tets = m.tets[rm.cub_ids]
+        vertices, local = np.unique(tets, return_inverse=True)
+        local = local.reshape(tets.shape)
+        weight = np.zeros(vertices.size)
+        np.add.at(weight, local, np.repeat(m.scenario.material.density * rm.wV[:, None] / 4.0, 4, axis=1))
+        Wv = rm.W[vertices].reshape(-1, rm.r)
+        S = Wv.T @ (np.repeat(weight, 3)[:, None] * Wv)
+        return cls(vertices, weight, local, shape_gradients(m.Dm_inv[rm.cub_ids]), cho_factor(S))
+
+
+class ReducedSolver:
+    """Backward Euler in the subspace of a basis W (n, 3, r); see the module docstring.
+
+    model: the scene on the mesh W was evaluated on; cubature: (tet ids, weights) or None for every tet (weight
+    1); scheme: "newton" or "projected_gradient"; device: where the taichi kernels run ("cpu" or "cuda");
+    tol: convergence |W dq|_inf / h < tol * L [1/s]; max_iter: iterations per step; alpha: the
+    projected-gradient step size [-]; contact_samples, seed: contact point subsampling (None keeps all);
+    armijo, max_halvings: Newton line search.
+    """
+
+    name = "licrom"
+
+    def __init__(self, model: Model, W: np.ndarray, cubature: Cubature | None = None, scheme: str = "newton",
+                 device: str = "cpu", tol: float = 1e-5, max_iter: int = 50, alpha: float = 1.0,
+                 contact_samples: int | None = None, seed: int = 0, name: str | None = None,
+                 armijo: float = 1e-4, max_halvings: int = 40) -> None:
+        if scheme not in ("newton", "projected_gradient"):
+            raise ValueError(f"scheme = {scheme!r}: expected 'newton' or 'projected_gradient'")
+        K.init_taichi(device)
+        self.model = model
+        self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed)
+        self.scheme, self.tol, self.max_iter, self.alpha = scheme, tol, max_iter, alpha
+        self.armijo, self.max_halvings = armijo, max_halvings
+        if name is not None:
+            self.name = name
+        self.law = model.scenario.contact.law
+        self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
+        self.latent: ReducedState | None = None
+        self.q_history: list[tuple[float, np.ndarray]] = []
+        self._x_out: np.ndarray | None = None
+
+    # ----- state mapping ---------------------------------------------------------------------------------
+    def init_state(self, state: State) -> ReducedState:
+        """Project a full state to the subspace (mass-weighted least squares of x - X and of v), make it the
+        current latent state and restart `q_history` with it."""
+        rm = self.reduced
+        self.latent = ReducedState(rm.project(state.x - self.model.X), rm.project(state.v), state.t)
+        self.q_history = [(state.t, self.latent.q.copy())]
+        self._x_out = state.x
+        return self.latent
+
+    def decode(self, latent: ReducedState) -> State:
+        """The full state X + W q, W qdot of a latent state."""
+        rm = self.reduced
+        return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t)
+
+    def frame_latents(self, times: np.ndarray) -> np.ndarray:
+        """q (F, r) at the given times (e.g. a trajectory's frame times), from `q_history`."""
+        t_hist = np.array([t for t, _ in self.q_history])
+        idx = np.abs(t_hist[None, :] - np.asarray(times)[:, None]).argmin(axis=1)
+        if np.any(np.abs(t_hist[idx] - times) > 1e-9 * max(1.0, float(np.max(np.abs(times))))):
+            raise KeyError("some requested times were not stepped since the last projection")
+        return np.stack([self.q_history[i][1] for i in idx])
+
+    # ----- incremental potential -------------------------------------------------------------------------
+    def _point_terms(self, q: np.ndarray, st: _Step, order: int
+                     ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
+        """Contact and friction at the sample points: energy [J], per-point gradient (p, 3) [N] (order >= 1) and
+        Hessian blocks (p, 3, 3) [N/m] (order 2)."""
+        m, rm = self.model, self.reduced
+        x = rm.point_positions(q)
+        c, n, d = m.scenario.contact, m.plane_normal, m.plane_offset
+        E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
+        if self.law == "penalty":
+            kd = c.damping if m.has("damping") else 0.0
+            args = (x, st.x_prev, rm.area, n, d, c.stiffness, kd, st.h)
+            E += pc.penalty_energy(*args)
+            if order >= 1:
+                g += pc.penalty_gradient(*args)
+            if order == 2:
+                H += pc.penalty_hessian(*args)
+        else:
+            phi = pc.signed_distance(x, n, d)
+            kA = c.barrier_stiffness * rm.area
+            E += float(kA @ pc.barrier(phi, c.barrier_distance))
+            if order >= 1:
+                g += (kA * pc.barrier_d1(phi, c.barrier_distance))[:, None] * n
+            if order == 2:
+                H += (kA * pc.barrier_d2(phi, c.barrier_distance))[:, None, None] * np.outer(n, n)
+        if st.fn is not None:
+            args = (x, st.x_prev, rm.area, st.fn, n, m.scenario.plane.friction, c.friction_stiffness, st.h)
+            E += pf.friction_energy(*args)
+            if order >= 1:
+                g += pf.friction_gradient(*args)
+            if order == 2:
+                H += pf.friction_hessian(*args)
+        return E, (g if order >= 1 else None), (H if order == 2 else None)
+
+    def energy(self, q: np.ndarray, st: _Step) -> float:
+        """E(q) [J] of the step's incremental potential (up to a constant)."""
+        d = q - st.q_hat
+        E = 0.5 / st.h**2 * float(d @ self.reduced.M_r @ d) - float(self.reduced.gravity_q @ q)
+        if self.model.has("elasticity"):
+            E += self.reduced.elastic(q, K.ENERGY)[0]
+        if self.model.has("contact"):
+            E += self._point_terms(q, st, 0)[0]
+        return E
+
+    def gradient_hessian(self, q: np.ndarray, st: _Step) -> tuple[np.ndarray, np.ndarray]:
+        """dE/dq (r,) [N] and the PSD-projected d2E/dq2 (r, r) [N/m]."""
+        rm = self.reduced
+        g = rm.M_r @ (q - st.q_hat) / st.h**2 - rm.gravity_q
+        H = rm.M_r / st.h**2
+        if self.model.has("elasticity"):
+            _, ge, He = rm.elastic(q, K.HESSIAN)
+            g, H = g + ge, H + He
+        if self.model.has("contact"):
+            _, gp, Hp = self._point_terms(q, st, 2)
+            g = g + rm.Wp.reshape(-1, rm.r).T @ gp.ravel()
+            active = np.flatnonzero(np.abs(Hp).sum(axis=(1, 2)) > 0.0)
+            if active.size:
+                Wa = rm.Wp[active]
+                H = H + Wa.reshape(-1, rm.r).T @ np.matmul(Hp[active], Wa).reshape(-1, rm.r)
+        return g, H
+
+    # ----- one time step ----------------------------------------------------------------------------------
+    def _begin(self, latent: ReducedState, h: float) -> _Step:
+        """Per-step constants; the friction normal pressure is lagged from the start of the step."""
+        m, rm = self.model, self.reduced
+        x_prev = rm.point_positions(latent.q)
+        fn = None
+        if m.has("friction"):
+            c = m.scenario.contact
+            if self.law == "penalty":
+                v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
+                kd = c.damping if m.has("damping") else 0.0
+                fn = pc.normal_pressure(x_prev, v, m.plane_normal, m.plane_offset, c.stiffness, kd)
+            else:
+                fn = pc.barrier_pressure(x_prev, m.plane_normal, m.plane_offset, c.barrier_stiffness,
+                                         c.barrier_distance)
+        return _Step(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
+
+    def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
+        """|W dq|_inf / h over all mesh vertices [m/s]."""
+        return float(np.abs(self.reduced.W.reshape(-1, self.reduced.r) @ dq).max()) / h
+
+    def _max_feasible_step(self, q: np.ndarray, dq: np.ndarray) -> float:
+        """Barrier law: largest alpha <= 1 keeping every contact point strictly above the plane (90% rule)."""
+        if not (self.model.has("contact") and self.law == "barrier"):
+            return 1.0
+        rm, n = self.reduced, self.model.plane_normal
+        phi = rm.point_positions(q) @ n - self.model.plane_offset
+        rate = (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n
+        approaching = rate < 0
+        if not approaching.any():
+            return 1.0
+        return float(min(1.0, 0.9 * np.min(phi[approaching] / -rate[approaching])))
+
+    def _initial_guess(self, st: _Step) -> np.ndarray:
+        """q_hat, shortened for the barrier law so that no contact point crosses the plane."""
+        return st.q_prev + self._max_feasible_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
+
+    def _newton(self, st: _Step) -> tuple[np.ndarray, int, float, int, bool]:
+        """Minimise E by Newton; returns (q, iterations, residual [m/s], halvings, converged)."""
+        q = self._initial_guess(st)
+        E = self.energy(q, st)
+        tol_v = self.tol * self.model.L
+        halvings, residual, it = 0, np.inf, 0
+        for it in range(1, self.max_iter + 1):
+            g, H = self.gradient_hessian(q, st)
+            dq = cho_solve(cho_factor(H), -g)
+            residual = self._velocity_norm(dq, st.h)
+            if residual < tol_v:
+                return q + self._max_feasible_step(q, dq) * dq, it, residual, halvings, True
+            g_dot = float(g @ dq)
+            alpha = self._max_feasible_step(q, dq)
+            while True:
+                E_new = self.energy(q + alpha * dq, st)
+                if np.isfinite(E_new) and E_new <= E + self.armijo * alpha * g_dot + 1e-12 * abs(E):
+                    break
+                alpha *= 0.5
+                halvings += 1
+                if alpha < 2.0 ** -self.max_halvings:
+                    break
+            q, E = q + alpha * dq, E_new
+        return q, it, residual, halvings, False
+
+    def _sample_gradient_rhs(self, q: np.ndarray, st: _Step) -> np.ndarray:
+        """sum_i W_i^T g_i over the sample points: g_i the full-space gradient of E at the decoded points [N]."""
+        m, rm, sp_ = self.model, self.reduced, self.samples
+        Wv = rm.W[sp_.vertices]
+        u, u_hat = (Wv.reshape(-1, rm.r) @ q).reshape(-1, 3), (Wv.reshape(-1, rm.r) @ st.q_hat).reshape(-1, 3)
+        grad = sp_.weight[:, None] * ((u - u_hat) / st.h**2 - (m.gravity if m.has("gravity") else 0.0))
+        if m.has("elasticity"):
+            _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
+            forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, sp_.grad_shape)
+            np.add.at(grad, sp_.local, forces)
+        rhs = Wv.reshape(-1, rm.r).T @ grad.ravel()
+        if m.has("contact"):
+            rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
+        return rhs
+
+    def _projected_gradient(self, st: _Step) -> tuple[np.ndarray, int, float, int, bool]:
+        """The paper's scheme; returns (q, iterations, residual [m/s], 0, converged)."""
+        q = self._initial_guess(st)
+        tol_v = self.tol * self.model.L
+        residual, it = np.inf, 0
+        for it in range(1, self.max_iter + 1):
+            dq = -cho_solve(self.samples.S_cho, self.alpha * st.h**2 * self._sample_gradient_rhs(q, st))
+            dq *= self._max_feasible_step(q, dq)
+            q = q + dq
+            residual = self._velocity_norm(dq, st.h)
+            if residual < tol_v:
+                return q, it, residual, 0, True
+        return q, it, residual, 0, False
+
+    def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
+        """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics."""
+        t0 = time.perf_counter()
+        latent = self.latent if state_in.x is self._x_out and self.latent is not None else self.init_state(state_in)
+        st = self._begin(latent, dt)
+        solve = self._newton if self.scheme == "newton" else self._projected_gradient
+        q, iters, residual, halvings, converged = solve(st)
+        self.latent = ReducedState(q, (q - latent.q) / dt, latent.t + dt)
+        self.q_history.append((self.latent.t, q.copy()))
+        out = self.decode(self.latent)
+        state_out.x, state_out.v, state_out.t = out.x, out.v, out.t
+        self._x_out = state_out.x
+        return StepStats(iters, residual, halvings, converged, time.perf_counter() - t0)
+
+
+def simulate_reduced(model: Model, solver: ReducedSolver, state0: State | None = None, progress: bool = False,
+                     meta: dict | None = None) -> tuple[Trajectory, list[StepStats]]:
+    """solvers.simulate.simulate with the reduced solver, plus the latent coordinates per stored frame in
+    `trajectory.q` (F, r)."""
+    traj, stats = simulate(model, solver, state0, progress, meta)
+    traj.q = solver.frame_latents(traj.t)
+    return traj, stats

@@ -1,0 +1,34 @@
+"""Solver plug-ins: one entry per solver name; the harness never special-cases a solver.
+
+A plug-in is a function `setup(model, device, **params) -> stepper` (untimed); the stepper has `name` and
+`step(state_in, state_out, dt) -> StepStats`. `PARAMETERS[name]` is its declarative parameter grid (the harness
+runs the cartesian product).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from solvers.full.solver import FullSpaceSolver, NewtonSettings
+from solvers.model import Model
+
+
+def setup_full(model: Model, device: str = "cpu", tol: float = 1e-5, linear: str = "auto",
+               max_iter: int = 50) -> FullSpaceSolver:
+    """The full-space Newton solver (the reference)."""
+    return FullSpaceSolver(model, device=device, settings=NewtonSettings(tol=tol, linear=linear, max_iter=max_iter))
+
+
+SOLVERS: dict[str, Callable[..., object]] = {"full": setup_full}
+PARAMETERS: dict[str, dict[str, list]] = {"full": {"tol": [1e-5]}}
+# Offline preparation per mesh shape (training a reduced model, building a basis): name -> hook returning the
+# completed run parameters (with `shape`), or None when the shape cannot be prepared.
+PREPARE: dict[str, Callable[..., dict | None]] = {}
+
+
+def get_solver(name: str) -> Callable[..., object]:
+    """The setup function of solver `name`; a clear error lists the known ones."""
+    try:
+        return SOLVERS[name]
+    except KeyError:
+        raise ValueError(f"solver = {name!r}: unknown; known solvers: {sorted(SOLVERS)}") from None

@@ -1,0 +1,50 @@
+"""Run one scenario with one solver: setup (untimed), a warm-up step (JIT, reported apart), the timed run."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from scenarios.meshes import load_mesh
+from scenarios.model import MeshSpec, Scenario
+from solvers.full.solver import stats_summary
+from solvers.model import State, build_model, initial_state
+from solvers.registry import get_solver
+from solvers.simulate import Diverged, simulate
+from solvers.trajectory import Trajectory
+
+
+def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", params: dict | None = None,
+                 mesh: MeshSpec | None = None, progress: bool = False) -> tuple[Trajectory | None, dict]:
+    """Simulate `scenario` (optionally on another mesh of the same shape) with the named solver.
+
+    Returns the trajectory (None if the run diverged before its first frame) and a stats dict: setup_s,
+    warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
+    of the timed run, `failed` and `failure` (reason) for a run that diverged.
+    """
+    params = dict(params or {})
+    t0 = time.perf_counter()
+    model = build_model(scenario, load_mesh(mesh or scenario.mesh))
+    stepper = get_solver(solver)(model, device=device, **params)
+    setup_s = time.perf_counter() - t0
+    state0 = initial_state(model)
+    t0 = time.perf_counter()
+    stepper.step(state0.copy(), State(state0.x.copy(), state0.v.copy()), scenario.time.dt)
+    warmup_s = time.perf_counter() - t0
+    if hasattr(stepper, "reset"):
+        stepper.reset()
+    meta = {"solver": solver, "params": params, "device": device, "mesh": (mesh or scenario.mesh).key}
+    stats: dict = {"setup_s": setup_s, "warmup_s": warmup_s, "device": device, "solver": solver, "params": params,
+                   "mesh": (mesh or scenario.mesh).key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
+                   "terms": list(model.terms), "failed": False, "failure": ""}
+    t0 = time.perf_counter()
+    try:
+        traj, steps = simulate(model, stepper, state0, progress=progress, meta=meta)
+    except Diverged as err:
+        traj, steps = err.trajectory, err.stats
+        stats.update(failed=True, failure=str(err))
+    stats["run_s"] = time.perf_counter() - t0
+    stats.update({k: v for k, v in stats_summary(steps).items()})
+    stats["finite"] = bool(np.isfinite(traj.x).all()) and not stats["failed"]
+    return traj, stats
