@@ -128,7 +128,7 @@ def cmd_gate(args: argparse.Namespace) -> int:
     failed = [v for v in verdicts if not v.passed]
     for v in failed:
         print(f"FAIL {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit})")
-    print(f"{len(verdicts) - len(failed)} passed, {len(failed)} failed")
+    print(f"gate verdicts: {len(verdicts) - len(failed)} of {len(verdicts)} met")
     return 1 if failed or not verdicts else 0
 
 

@@ -236,19 +236,26 @@ def penalty_contact_kernel(
     energy: wp.array(dtype=f64),
     mode: int,
 ):
-    """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian."""
+    """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian.
+
+    Damping acts at points that penetrated at the start of the step (x_prev below the plane)."""
     p = wp.tid()
     i = points[p]
     c = offset - wp.dot(normal, x[i])
-    if c <= f64(0.0):
+    vn = f64(0.0)
+    if wp.dot(normal, x_prev[i]) < offset:
+        vn = wp.min(f64(0.0), wp.dot(x[i] - x_prev[i], normal) / h)
+    if c <= f64(0.0) and vn == f64(0.0):
         return
-    vn = wp.min(f64(0.0), wp.dot(x[i] - x_prev[i], normal) / h)
+    c = wp.max(c, f64(0.0))
     A = area[p]
     if mode == 0:
         wp.atomic_add(energy, 0, A * (f64(0.5) * ke * c * c + f64(0.5) * h * kd * vn * vn))
     else:
         wp.atomic_add(grad, i, A * (-ke * c + kd * vn) * normal)
-        k = A * ke
+        k = f64(0.0)
+        if c > f64(0.0):
+            k = A * ke
         if vn < f64(0.0):
             k = k + A * kd / h
         wp.atomic_add(values, diag[i], k * wp.outer(normal, normal))

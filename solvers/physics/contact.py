@@ -2,7 +2,9 @@
 
 Plane: phi(x) = n . x - d (n unit). Penalty law (the paper's, from warp's soft contact): penetration
 c = max(0, -phi), normal pressure k_e c + k_d max(0, -v.n), energy density 1/2 k_e c^2; the damping part is
-the dissipative potential h k_d / 2 max(0, -v.n)^2 with v = (x - x^n)/h, active only while penetrating.
+the dissipative potential h k_d / 2 max(0, -v.n)^2 with v = (x - x^n)/h, active at the points that penetrate at
+the start of the step (`damped`, lagged like friction's normal force, so that the step's potential stays
+continuous; gating on the current penetration would make it jump where a point crosses the plane).
 Barrier law (IPC): energy density kappa b(phi), b(d) = -(d - dhat)^2 log(d / dhat) for 0 < d < dhat, else 0.
 Arrays: x (p, 3) point positions, area (p,) [m^2]; energies in J, gradients (p, 3) in N, Hessians (p, 3, 3).
 """
@@ -17,25 +19,30 @@ def signed_distance(x: np.ndarray, normal: np.ndarray, offset: float) -> np.ndar
     return x @ normal - offset
 
 
+def damped_points(x_prev, normal, offset) -> np.ndarray:
+    """Points whose contact damping is active during the step: penetrating at its start, (p,) bool."""
+    return signed_distance(x_prev, normal, offset) < 0
+
+
 def penalty_energy(x, x_prev, area, normal, offset, ke, kd, h) -> float:
-    """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [c > 0])."""
+    """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [damped])."""
     c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * (c > 0)
+    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * damped_points(x_prev, normal, offset)
     return float(area @ (0.5 * ke * c**2 + 0.5 * h * kd * vn**2))
 
 
 def penalty_gradient(x, x_prev, area, normal, offset, ke, kd, h) -> np.ndarray:
-    """Gradient of `penalty_energy`: A (-k_e c + k_d min(0, v.n)) n, (p, 3)."""
+    """Gradient of `penalty_energy`: A (-k_e c + k_d min(0, v.n) [damped]) n, (p, 3)."""
     c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * (c > 0)
+    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * damped_points(x_prev, normal, offset)
     return (area * (-ke * c + kd * vn))[:, None] * normal[None, :]
 
 
 def penalty_hessian(x, x_prev, area, normal, offset, ke, kd, h) -> np.ndarray:
-    """Hessian blocks of `penalty_energy`: A (k_e [c > 0] + k_d / h [c > 0, v.n < 0]) n n^T, (p, 3, 3)."""
+    """Hessian blocks of `penalty_energy`: A (k_e [c > 0] + k_d / h [damped, v.n < 0]) n n^T, (p, 3, 3)."""
     c = -signed_distance(x, normal, offset)
     vn = (x - x_prev) @ normal / h
-    k = area * (ke * (c > 0) + kd / h * ((c > 0) & (vn < 0)))
+    k = area * (ke * (c > 0) + kd / h * (damped_points(x_prev, normal, offset) & (vn < 0)))
     return k[:, None, None] * np.outer(normal, normal)[None]
 
 
