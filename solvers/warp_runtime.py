@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
@@ -21,6 +22,6 @@ def init_warp() -> None:
     if _done:
         return
     wp.config.kernel_cache_dir = str(cache_root() / "warp")
-    wp.config.quiet = True
+    wp.config.log_level = logging.WARNING  # no init banner or per-module load lines
     wp.init()
     _done = True
