@@ -67,7 +67,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
     params = {}
     if args.model:
-        params["model"] = args.model
+        if args.solver != "licrom":
+            raise ScenarioError("--model", args.model, "a checkpoint goes with --solver licrom")
+        params["checkpoint"] = args.model
     traj, stats = run_scenario(scenario, args.solver, args.device, params, parse_mesh(args.mesh),
                                progress=not args.quiet)
     out = Path(args.out)
@@ -83,15 +85,19 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def parse_variants(spec: str) -> list:
-    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`)."""
-    from bench.variants import VARIANTS
+def parse_variants(spec: str | None, epochs: int | None = None) -> list:
+    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`);
+    `epochs` overrides the training epochs of the variants that train."""
+    from dataclasses import replace
+
+    from bench.variants import DEFAULT, VARIANTS
 
     out = []
-    for name in [s for s in spec.split(",") if s and s != "full"]:
+    for name in [s for s in (spec or DEFAULT).split(",") if s and s != "full"]:
         if name not in VARIANTS:
             raise ScenarioError("--solvers", name, f"unknown variant; known: {sorted(VARIANTS)}")
-        out.extend(VARIANTS[name])
+        out.extend(replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
+                   for v in VARIANTS[name])
     return out
 
 
@@ -99,11 +105,37 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
     from bench.runner import run_suite
 
-    csv = run_suite(args.suite, args.out, parse_variants(args.solvers), device=args.device, jobs=args.jobs,
+    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs), device=args.device, jobs=args.jobs,
                     executor=args.executor, report=not args.no_report)
     print(f"results: {csv}")
     if not args.no_report:
         print(f"report:  {Path(args.out) / 'report.html'}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    """Train a LiCROM model on the full-space trajectories of a suite's training split (generated and cached)."""
+    from bench.runner import Task, run_tasks
+    from bench.store import RunStore
+    from scenarios.suites import load_suite
+    from solvers.licrom.train import train_from_trajectories
+
+    suite = load_suite(args.suite)
+    members = [m for m in suite.train if args.mesh in (None, m.scenario.mesh.name)]
+    if not members:
+        raise ScenarioError("--mesh", args.mesh, f"no training member of suite {suite.name} has this mesh")
+    shapes = {m.scenario.mesh.key for m in members}
+    if len(shapes) > 1:
+        raise ScenarioError("--mesh", args.mesh, f"training members span several meshes {sorted(shapes)}; pick one")
+    out = Path(args.out)
+    store = RunStore(Path(args.store) if args.store else out / "runs")
+    tasks = [Task(m.scenario, "full", {}) for m in members]
+    run_tasks(tasks, store, args.device if args.data_device else "cpu", args.jobs, "process", "training data")
+    path = train_from_trajectories([store.folder(t.key) / "trajectory.npz" for t in tasks], out, args.r,
+                                   args.epochs, affine=args.affine, device=args.device, seed=args.seed,
+                                   points=args.points, identity={"suite": suite.name, "mesh": shapes.pop(),
+                                                                 "scenarios": [t.key for t in tasks]})
+    print(f"checkpoint: {path}")
     return 0
 
 
@@ -154,13 +186,30 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
     s.add_argument("--suite", required=True)
-    s.add_argument("--solvers", default="full", help="comma list of variants besides the full reference")
+    s.add_argument("--solvers", default=None, help="comma list of variant sets besides the full reference "
+                   "(default: every set of bench.variants; `full` for the reference only)")
+    s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--jobs", type=int, default=1)
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
     s.add_argument("--no-report", action="store_true")
     s.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("train", help="train a LiCROM model on a suite's training split")
+    s.add_argument("--suite", required=True)
+    s.add_argument("--mesh", help="mesh shape name (cheese, sphere, ...) when the suite has several")
+    s.add_argument("--r", type=int, default=20)
+    s.add_argument("--epochs", type=int, default=1000)
+    s.add_argument("--affine", action="store_true", help="the 12 affine columns exactly in the subspace")
+    s.add_argument("--points", type=int, default=1024, help="points subsampled per frame")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
+    s.add_argument("--data-device", action="store_true", help="also simulate the training data on --device")
+    s.add_argument("--jobs", type=int, default=1)
+    s.add_argument("--store", help="run store for the training trajectories (default OUT/runs)")
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("report", help="rebuild report.html from stored results")
     s.add_argument("dir")
@@ -179,6 +228,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except ScenarioError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except ValueError as err:  # checkpoint and plug-in errors name their file and value
+        if type(err).__name__ not in ("CheckpointError", "PluginError"):
+            raise
         print(f"error: {err}", file=sys.stderr)
         return 2
 

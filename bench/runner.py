@@ -49,8 +49,7 @@ class Task:
     @property
     def key(self) -> str:
         """Store key of this run."""
-        extra = {"mesh": self.mesh.key} if self.mesh else {}
-        return run_key(self.scenario, self.solver, self.params | extra)
+        return run_key(self.scenario, self.solver, self.params, self.mesh)
 
 
 def execute(task: Task, store_root: str, device: str) -> str:
@@ -81,9 +80,11 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
 
 
 def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
-    """The scenario's mesh at another resolution of the same catalogue shape."""
+    """The scenario's mesh at another resolution of the same catalogue shape; `alt` names the independently
+    generated mesh beside the scenario's own resolution (coarse -> coarse_alt)."""
     spec = member.scenario.mesh
-    return MeshSpec(name=spec.name, resolution=resolution, scale=spec.scale)
+    res = f"{spec.resolution}_alt" if resolution == "alt" else resolution
+    return MeshSpec(name=spec.name, resolution=res, scale=spec.scale)
 
 
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,

@@ -11,13 +11,25 @@ import json
 from pathlib import Path
 
 from scenarios.load import scenario_to_dict
-from scenarios.model import Scenario
+from scenarios.model import MeshSpec, Scenario
 from solvers.trajectory import Trajectory, write_json_atomic
 
 
-def run_key(scenario: Scenario, solver: str, params: dict) -> str:
-    """Stable key `<solver>-<sha256[:16]>` of what is simulated and how (not of its name)."""
+def mesh_identity(spec: MeshSpec) -> str:
+    """What a mesh spec resolves to: the catalogue recipe's key (changes when the generator or its parameters
+    change), or the file path (whose contents the scenario hash already covers)."""
+    if spec.path:
+        return spec.path
+    from scenarios.meshes import recipe
+
+    return recipe(spec.name, spec.resolution).key
+
+
+def run_key(scenario: Scenario, solver: str, params: dict, mesh: MeshSpec | None = None) -> str:
+    """Stable key `<solver>-<sha256[:16]>` of what is simulated and how (not of its name); `mesh` overrides the
+    scenario's mesh (remeshing)."""
     blob = json.dumps({"scenario": scenario_to_dict(scenario) | {"name": "", "description": "", "tags": []},
+                       "mesh": mesh_identity(mesh or scenario.mesh), "mesh_spec": (mesh or scenario.mesh).key,
                        "solver": solver, "params": params}, sort_keys=True, default=str)
     return f"{solver}-{hashlib.sha256(blob.encode()).hexdigest()[:16]}"
 

@@ -32,18 +32,19 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     t0 = time.perf_counter()
     stepper.step(state0.copy(), State(state0.x.copy(), state0.v.copy()), scenario.time.dt)
     warmup_s = time.perf_counter() - t0
-    if hasattr(stepper, "reset"):
-        stepper.reset()
     meta = {"solver": solver, "params": params, "device": device, "mesh": (mesh or scenario.mesh).key}
     stats: dict = {"setup_s": setup_s, "warmup_s": warmup_s, "device": device, "solver": solver, "params": params,
                    "mesh": (mesh or scenario.mesh).key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
                    "terms": list(model.terms), "failed": False, "failure": ""}
+    stats.update(getattr(stepper, "info", {}))
     t0 = time.perf_counter()
     try:
         traj, steps = simulate(model, stepper, state0, progress=progress, meta=meta)
     except Diverged as err:
         traj, steps = err.trajectory, err.stats
         stats.update(failed=True, failure=str(err))
+    if hasattr(stepper, "frame_latents"):
+        traj.q = stepper.frame_latents(traj.t)
     stats["run_s"] = time.perf_counter() - t0
     stats.update({k: v for k, v in stats_summary(steps).items()})
     stats["finite"] = bool(np.isfinite(traj.x).all()) and not stats["failed"]

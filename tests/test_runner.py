@@ -84,3 +84,20 @@ def test_dask_executor_runs_the_same_tasks(tmp_path, suite_file):
     assert all(store.done(t.key) for t in tasks)
     traj, stats = store.load(tasks[0].key)
     assert traj.n_frames == 6 and not stats["failed"]
+
+
+def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_file):
+    from bench.runner import Variant
+
+    variants = [Variant("affine", {}, label="affine12"), Variant("affine", {}, label="affine12-remesh", remesh="alt"),
+                Variant("pod", {"r": 4}, label="r4")]
+    results = pd.read_csv(run_suite(str(suite_file), tmp_path / "out", variants=variants, jobs=1, report=False))
+    assert len(results) == 2 * 4
+    affine = results[results["variant"] == "affine12"]
+    assert (affine["speedup"] > 0).all() and affine["pos_rmse_rel"].notna().all()
+    assert (affine["proj_rmse_rel"] <= affine["pos_rmse_rel"] + 1e-12).all()  # projection bounds the error
+    remeshed = results[results["variant"] == "affine12-remesh"]
+    assert (remeshed["mesh"] == "block/coarse").all() and (remeshed["remesh"] == "alt").all()
+    assert remeshed["pos_rmse_rel"].notna().all()  # compared with the full run on the other mesh
+    pod = results[results["variant"] == "r4"]
+    assert pod["pos_rmse_rel"].notna().all() and not pod["failed"].any()

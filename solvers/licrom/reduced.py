@@ -20,9 +20,14 @@ Schemes:
   gradient g_i of the incremental potential there (inertia w_i/h^2 (x_i - x_hat_i), gravity -w_i g, the
   cubature tets' elastic forces, contact and friction), forms the increments du_i = alpha h^2 g_i / w_i and
   projects them by the pre-factorised weighted least-squares system (sum_i w_i W_i^T W_i) dq = sum_i w_i W_i^T
-  du_i, then q <- q - dq. alpha = 1 solves the inertia + gravity part in one iteration; stiff elasticity,
-  contact and friction make it a preconditioned gradient descent that needs alpha < 2 / (1 + h^2 k / m) for the
-  stiffest mode and then converges slowly. Stops when |W dq|_inf / h < tol * L or after max_iter iterations.
+  du_i, then q <- q - dq. alpha = 1 solves the inertia + gravity part in one iteration, but elasticity, contact
+  and friction make it a gradient descent preconditioned by S = sum_i w_i W_i^T W_i, stable only for
+  alpha < 2 / lambda_max(h^2 S^-1 H) (`projected_gradient_alpha_limit`), and then the softest mode converges
+  like (1 - alpha)^k. Measured on
+  the block incline (E = 1 MPa, h = 10 ms, affine basis): the limit is ~0.005-0.011 (set by the volumetric mode
+  and by sticking friction, k_f / h); at 0.9 x the limit a sliding step needs ~460 iterations to reach tol = 1e-5,
+  a fixed 20 iterations leave the block nearly stuck (acceleration 0.57 instead of 3.21 m/s^2), and above the
+  limit the iteration oscillates or diverges. Stops when |W dq|_inf / h < tol * L or after max_iter iterations.
 
 The solver works on the full `State` of solvers/simulate.py: it keeps (q, qdot) itself and writes
 state_out.x = X + W q, state_out.v = W qdot. A state_in that is not the one it produced last is first
@@ -37,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import cho_factor, cho_solve, eigh
 
 from solvers.full.solver import StepStats
 from solvers.licrom import kernels as K
@@ -49,8 +54,9 @@ from solvers.physics.material import shape_gradients
 from solvers.simulate import simulate
 from solvers.trajectory import Trajectory
 
-SPARSE_DENSITY = 0.1
-"""Jacobians B with at most this fraction of non-zeros (local bases such as `full_basis`) use sparse products."""
+SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
+"""Jacobians B with at most this fraction of non-zeros and at least this many columns (local bases such as
+`full_basis`) use sparse products; below, the dense r x r work is cheaper than sparse bookkeeping."""
 
 
 @dataclass
@@ -67,8 +73,8 @@ class ReducedModel:
     """Static data of the reduced problem (float64).
 
     W: (n, 3, r) basis at the mesh vertices [m per unit q]; M_r: (r, r) reduced mass [kg]; gravity_q: (r,)
-    reduced weight g_r [N] (zeros without gravity); cub_ids, cub_w: (c,) cubature tets and weights; wV: (c,)
-    w_c V_c [m^3]; F0: (c, 3, 3) rest deformation gradients; B: (c, 9, r) dvec(F_c)/dq; B_sparse: the same
+    reduced weight g_r [N] (zeros without gravity); cub_ids: (c,) cubature tets; wV: (c,) their weights times
+    volumes w_c V_c [m^3]; F0: (c, 3, 3) rest deformation gradients; B: (c, 9, r) dvec(F_c)/dq; B_sparse: the same
     as a (9c, r) CSR matrix when sparse enough, else None; points, area: (p,) contact sample vertices and their
     area weights [m^2]; Xp: (p, 3) their rest positions; Wp: (p, 3, r) the basis there.
     """
@@ -79,7 +85,6 @@ class ReducedModel:
     M_cho: tuple
     gravity_q: np.ndarray
     cub_ids: np.ndarray
-    cub_w: np.ndarray
     wV: np.ndarray
     F0: np.ndarray
     B: np.ndarray
@@ -103,15 +108,20 @@ class ReducedModel:
         W = np.ascontiguousarray(W, dtype=np.float64)
         Wf = W.reshape(3 * n, r)
         M_r = Wf.T @ (np.repeat(model.mass, 3)[:, None] * Wf)
+        try:
+            M_cho = cho_factor(M_r)
+        except np.linalg.LinAlgError as err:
+            raise ValueError("the basis columns are linearly dependent on this mesh (W^T M W is singular)") from err
         g = model.gravity if model.has("gravity") else np.zeros(3)
         ids, w = all_tets(model) if cubature is None else (np.asarray(c) for c in cubature)
         F0, B = deformation_jacobians(model, W, ids)
         Bf = B.reshape(-1, r)
-        dense_enough = np.count_nonzero(Bf) > SPARSE_DENSITY * Bf.size
+        sparse = r >= SPARSE_MIN_R and np.count_nonzero(Bf) <= SPARSE_DENSITY * Bf.size
         points, area = _contact_samples(model, contact_samples, seed)
-        return cls(model=model, W=W, M_r=M_r, M_cho=cho_factor(M_r), gravity_q=np.einsum("n,nak,a->k", model.mass, W, g),
-                   cub_ids=ids.astype(np.int64), cub_w=w.astype(np.float64), wV=w * model.vol[ids], F0=F0, B=B,
-                   B_sparse=None if dense_enough else sp.csr_matrix(Bf), points=points, area=area,
+        return cls(model=model, W=W, M_r=M_r, M_cho=M_cho,
+                   gravity_q=np.einsum("n,nak,a->k", model.mass, W, g), cub_ids=ids.astype(np.int64),
+                   wV=w * model.vol[ids], F0=F0, B=B,
+                   B_sparse=sp.csr_matrix(Bf) if sparse else None, points=points, area=area,
                    Xp=model.X[points], Wp=np.ascontiguousarray(W[points]))
 
     @property
@@ -187,14 +197,15 @@ class _SamplePoints:
     """The projected-gradient scheme's mass-carrying sample points: the cubature tets' vertices.
 
     vertices: (k,) mesh vertex ids; weight: (k,) cubature lumped masses [kg]; local: (c, 4) index of each
-    cubature tet's vertices in `vertices`; grad_shape: (c, 4, 3) shape gradients g_a [1/m]; S_cho: Cholesky
-    factor of sum_i w_i W_i^T W_i (r, r) [kg].
+    cubature tet's vertices in `vertices`; grad_shape: (c, 4, 3) shape gradients g_a [1/m]; S: the
+    least-squares matrix sum_i w_i W_i^T W_i (r, r) [kg] and S_cho its Cholesky factor.
     """
 
     vertices: np.ndarray
     weight: np.ndarray
     local: np.ndarray
     grad_shape: np.ndarray
+    S: np.ndarray
     S_cho: tuple
 
     @classmethod
@@ -208,7 +219,7 @@ class _SamplePoints:
         np.add.at(weight, local, np.repeat(m.scenario.material.density * rm.wV[:, None] / 4.0, 4, axis=1))
         Wv = rm.W[vertices].reshape(-1, rm.r)
         S = Wv.T @ (np.repeat(weight, 3)[:, None] * Wv)
-        return cls(vertices, weight, local, shape_gradients(m.Dm_inv[rm.cub_ids]), cho_factor(S))
+        return cls(vertices, weight, local, shape_gradients(m.Dm_inv[rm.cub_ids]), S, cho_factor(S))
 
 
 class ReducedSolver:
@@ -259,8 +270,9 @@ class ReducedSolver:
 
     def frame_latents(self, times: np.ndarray) -> np.ndarray:
         """q (F, r) at the given times (e.g. a trajectory's frame times), from `q_history`."""
+        times = np.asarray(times, dtype=float)
         t_hist = np.array([t for t, _ in self.q_history])
-        idx = np.abs(t_hist[None, :] - np.asarray(times)[:, None]).argmin(axis=1)
+        idx = np.abs(t_hist[None, :] - times[:, None]).argmin(axis=1)
         if np.any(np.abs(t_hist[idx] - times) > 1e-9 * max(1.0, float(np.max(np.abs(times))))):
             raise KeyError("some requested times were not stepped since the last projection")
         return np.stack([self.q_history[i][1] for i in idx])
@@ -390,14 +402,14 @@ class ReducedSolver:
 
     def _sample_gradient_rhs(self, q: np.ndarray, st: _Step) -> np.ndarray:
         """sum_i W_i^T g_i over the sample points: g_i the full-space gradient of E at the decoded points [N]."""
-        m, rm, sp_ = self.model, self.reduced, self.samples
-        Wv = rm.W[sp_.vertices]
+        m, rm, pts = self.model, self.reduced, self.samples
+        Wv = rm.W[pts.vertices]
         u, u_hat = (Wv.reshape(-1, rm.r) @ q).reshape(-1, 3), (Wv.reshape(-1, rm.r) @ st.q_hat).reshape(-1, 3)
-        grad = sp_.weight[:, None] * ((u - u_hat) / st.h**2 - (m.gravity if m.has("gravity") else 0.0))
+        grad = pts.weight[:, None] * ((u - u_hat) / st.h**2 - (m.gravity if m.has("gravity") else 0.0))
         if m.has("elasticity"):
             _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
-            forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, sp_.grad_shape)
-            np.add.at(grad, sp_.local, forces)
+            forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, pts.grad_shape)
+            np.add.at(grad, pts.local, forces)
         rhs = Wv.reshape(-1, rm.r).T @ grad.ravel()
         if m.has("contact"):
             rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
@@ -409,7 +421,8 @@ class ReducedSolver:
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
         for it in range(1, self.max_iter + 1):
-            dq = -cho_solve(self.samples.S_cho, self.alpha * st.h**2 * self._sample_gradient_rhs(q, st))
+            rhs = self.alpha * st.h**2 * self._sample_gradient_rhs(q, st)
+            dq = -cho_solve(self.samples.S_cho, rhs, check_finite=False)
             dq *= self._max_feasible_step(q, dq)
             q = q + dq
             residual = self._velocity_norm(dq, st.h)
@@ -417,8 +430,21 @@ class ReducedSolver:
                 return q, it, residual, 0, True
         return q, it, residual, 0, False
 
+    def projected_gradient_alpha_limit(self, state: State, dt: float) -> float:
+        """Largest stable step size alpha of the projected-gradient scheme at `state` (projected to the subspace):
+        2 / lambda_max(h^2 S^-1 H), H the PSD-projected Hessian of the scheme's incremental potential (inertia
+        S / h^2 on the sample points) at q_hat. Above it the iteration diverges along the stiffest mode; below it
+        the softest mode converges like (1 - alpha)^k."""
+        rm = self.reduced
+        samples = self.samples if self.samples is not None else _SamplePoints.build(rm)
+        latent = ReducedState(rm.project(state.x - self.model.X), rm.project(state.v), state.t)
+        st = self._begin(latent, dt)
+        H = self.gradient_hessian(st.q_hat, st)[1] + (samples.S - rm.M_r) / dt**2
+        return 2.0 / float(eigh(dt**2 * H, samples.S, eigvals_only=True)[-1])
+
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
-        """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics."""
+        """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics
+        (`newton_iters` counts the iterations of either scheme; halvings are 0 for the projected gradient)."""
         t0 = time.perf_counter()
         latent = self.latent if state_in.x is self._x_out and self.latent is not None else self.init_state(state_in)
         st = self._begin(latent, dt)

@@ -349,7 +349,7 @@ def _batch_loss(
 
 def evaluate_basis(ckpt: Checkpoint, X: np.ndarray, chunk: int = 65536) -> np.ndarray:
     """The basis W (n, 3, r) [-] at any rest points X (n, 3) [m] (float64 evaluation, no grad, CPU)."""
-    X = np.asarray(X, dtype=np.float64)
+    X = np.array(X, dtype=np.float64)  # a writable copy: torch.from_numpy shares memory
     if X.ndim != 2 or X.shape[1] != 3:
         raise ValueError(f"X has shape {X.shape}: expected (n, 3)")
     field_net = ckpt.field().double()

@@ -1,0 +1,99 @@
+"""Reduced solvers end to end: `frictionbench train`, simulate with a checkpoint on the training mesh and on
+another mesh of the shape, and the clear errors (corrupt checkpoint, wrong r, POD on another mesh)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.cli import main, resolve_scenario
+from scenarios.meshes import load_mesh
+from scenarios.model import MeshSpec
+from solvers.licrom.plugins import PluginError, prepare_pod, setup_pod
+from solvers.licrom.train import CheckpointError
+from solvers.model import build_model
+from solvers.trajectory import Trajectory
+
+SUITE = """
+[suite]
+name = "tinytrain"
+description = "block drops for training"
+[base.mesh]
+name = "block"
+resolution = "coarse"
+[base.material]
+youngs_modulus = 1.0e5
+[base.initial]
+clearance = 0.02
+[base.time]
+dt = 0.01
+duration = 0.15
+[[axis]]
+name = "mu"
+field = "plane.friction"
+values = [0.2, 0.6]
+"""
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("train")
+    suite = root / "tinytrain.toml"
+    suite.write_text(SUITE)
+    out = root / "model"
+    assert main(["train", "--suite", str(suite), "--r", "14", "--epochs", "3", "--affine", "--points", "64",
+                 "--out", str(out)]) == 0
+    return suite, out
+
+
+def test_train_writes_checkpoint_and_loss(trained):
+    _, out = trained
+    assert (out / "model.pt").is_file() and (out / "loss.csv").read_text().count("\n") >= 4
+
+
+def test_simulate_with_checkpoint_on_training_and_other_mesh(trained, tmp_path):
+    suite, out = trained
+    scenario = str(suite.parent / "one.toml")
+    Path(scenario).write_text('name = "one"\n[mesh]\nname = "block"\nresolution = "coarse"\n[initial]\n'
+                              'clearance = 0.02\n[time]\ndt = 0.01\nduration = 0.05\n')
+    for mesh, folder in ((None, "same"), ("block/coarse_alt", "other")):
+        argv = ["simulate", scenario, "--solver", "licrom", "--model", str(out / "model.pt"), "--no-vtu", "-q",
+                "--out", str(tmp_path / folder)]
+        assert main(argv + (["--mesh", mesh] if mesh else [])) == 0
+    same = Trajectory.load(tmp_path / "same" / "trajectory.npz")
+    other = Trajectory.load(tmp_path / "other" / "trajectory.npz")
+    assert same.q.shape == (6, 14) and other.q.shape == (6, 14)
+    assert same.X.shape != other.X.shape  # really another mesh
+    # both fall under gravity the same way (the affine columns carry the rigid motion exactly)
+    drop = lambda t: t.x[-1, :, 1].mean() - t.x[0, :, 1].mean()  # noqa: E731
+    assert drop(same) == pytest.approx(drop(other), rel=1e-3)
+
+
+def test_corrupt_checkpoint_and_wrong_r_fail_clearly(trained, tmp_path, capsys):
+    suite, out = trained
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a checkpoint")
+    code = main(["simulate", "verify/block_fall", "--solver", "licrom", "--model", str(bad), "--no-vtu", "-q",
+                 "--out", str(tmp_path / "x")])
+    assert code == 2 and str(bad) in capsys.readouterr().err
+    from solvers.licrom.plugins import setup_licrom
+
+    model = build_model(resolve_scenario("verify/block_fall"), load_mesh(MeshSpec("block", "coarse")))
+    with pytest.raises(CheckpointError, match="r"):
+        setup_licrom(model, checkpoint=str(out / "model.pt"), r=20)
+
+
+def test_pod_refuses_another_mesh(trained, tmp_path):
+    suite, out = trained
+    runs = sorted((out / "runs").glob("*/trajectory.npz"))
+    params = prepare_pod(shape="block", trajectories=runs, params={"r": 6}, models_dir=tmp_path, device="cpu",
+                         suite="tinytrain")
+    sc = resolve_scenario("verify/block_fall")
+    other = build_model(sc, load_mesh(MeshSpec("block", "coarse_alt")))
+    with pytest.raises(PluginError, match="training mesh"):
+        setup_pod(other, basis=params["basis"], r=6)
+    same = build_model(sc, load_mesh(MeshSpec("block", "coarse")))
+    assert setup_pod(same, basis=params["basis"], r=6).reduced.r == 6
+    assert np.isfinite(np.load(params["basis"])["W"]).all()
