@@ -10,6 +10,7 @@ Runs execute through a pluggable executor (`executors.make_executor`: a local pr
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -52,14 +53,18 @@ class Task:
         return run_key(self.scenario, self.solver, self.params, self.mesh)
 
 
-def execute(task: Task, store_root: str, device: str) -> str:
-    """Run one task into the store unless done (executed in a worker process); returns its key."""
+def execute(task: Task, store_root: str, device: str, threads: int = 1) -> str:
+    """Run one task into the store unless done (executed in a worker process, its BLAS, OpenMP and torch
+    thread pools limited to `threads` so that parallel workers do not oversubscribe the cores); returns its key."""
+    from threadpoolctl import threadpool_limits
+
     from solvers.run import run_scenario
 
     store = RunStore(store_root)
     if not store.done(task.key):
         try:
-            traj, stats = run_scenario(task.scenario, task.solver, device, task.params, task.mesh)
+            with threadpool_limits(threads):
+                traj, stats = run_scenario(task.scenario, task.solver, device, task.params, task.mesh)
         except Exception as err:  # a failed run is a row with its reason, never a crash of the matrix
             traj, stats = None, {"failed": True, "failure": f"{type(err).__name__}: {err}", "solver": task.solver}
         stats["scenario"] = task.scenario.name
@@ -73,8 +78,9 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
     todo = [t for t in {t.key: t for t in tasks}.values() if not store.done(t.key)]
     if not todo:
         return
+    threads = max(1, (os.cpu_count() or 1) // jobs)
     with make_executor(executor, jobs) as ex:
-        futures = [ex.submit(execute, t, str(store.root), device) for t in todo]
+        futures = [ex.submit(execute, t, str(store.root), device, threads) for t in todo]
         for f in tqdm(ex.as_completed(futures), total=len(futures), desc=desc, unit="run"):
             f.result()
 

@@ -16,28 +16,7 @@ from solvers.physics import friction as pf
 from solvers.physics import material as pm
 from solvers.simulate import simulate
 
-G = 9.81
-
-
-@pytest.fixture(scope="module")
-def block():
-    return load_mesh(MeshSpec(name="block", resolution="coarse"))
-
-
-def incline(theta_deg: float, mu: float, **kw) -> Scenario:
-    """A block released at rest, flat on a plane through the origin descending towards +x."""
-    t = np.radians(theta_deg)
-    return Scenario(
-        name=f"incline_{theta_deg}_{mu}", mesh=MeshSpec("block", "coarse"),
-        material=Material(density=1000.0, youngs_modulus=1e6, poisson_ratio=0.3),
-        plane=Plane(normal=(np.sin(t), np.cos(t), 0.0), offset=0.0, friction=mu),
-        initial=Initial(clearance=0.0, rotation=(0.0, 0.0, -theta_deg)),
-        time=TimeSpec(dt=0.01, duration=kw.pop("duration", 0.6)), **kw)
-
-
-def com_series(traj, mass):
-    return np.einsum("n,fnk->fk", mass, traj.x) / mass.sum()
-
+from scenes import G, com_series, incline
 
 def test_kernels_match_numpy_reference(block):
     sc = incline(30.0, 0.4, contact=Contact(damping=30.0), effects=Effects(damping=True))
