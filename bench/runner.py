@@ -30,12 +30,14 @@ from solvers.trajectory import write_json_atomic
 @dataclass(frozen=True)
 class Variant:
     """One solver configuration of the matrix: solver name, parameters, label, and an optional other mesh
-    resolution of the same shape (remeshing) whose trajectory is compared after transfer to the reference mesh."""
+    resolution of the same shape (remeshing; compared with the full-space run on that mesh). `model` names the
+    trained model a remeshed variant shares with its training-mesh variant (default: the label)."""
 
     solver: str
     params: dict = field(default_factory=dict)
     label: str = ""
     remesh: str | None = None
+    model: str = ""
 
 
 @dataclass(frozen=True)
@@ -154,7 +156,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
         for v, params in member_variants(resolved, variants, m):
             label = v.label or v.solver
             if params is None:
-                rows.append(base | {"solver": v.solver, "variant": label, "failed": True,
+                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed",
                                     "failure": "no reduced model for this mesh shape"})
                 continue
             mesh = mesh_variant(m, v.remesh) if v.remesh else None
@@ -162,8 +164,9 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
             traj, stats = store.load(task.key)
             # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed)
             v_ref, v_ref_stats = store.load(Task(sc, "full", {}, mesh).key) if mesh else (ref, ref_stats)
-            row = base | {"solver": v.solver, "variant": label, "run": task.key,
-                          "remesh": v.remesh or "", "r": params.get("r")}
+            row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
+                          "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
+                          "train_mesh": sc.mesh.key if "shape" in params else ""}
             rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, sc, stats))
     return rows
 
@@ -178,12 +181,12 @@ def _timing(stats: dict, ref_stats: dict) -> dict:
 
 
 def _metrics(ref, traj, sc: Scenario, stats: dict) -> dict:
-    """Metric columns of one row, or a failed row with its reason."""
-    failed = {"failed": bool(stats.get("failed")), "failure": stats.get("failure", "")}
-    if traj is None or ref is None:
-        return failed | {"failed": True, "failure": stats.get("failure") or "no trajectory"}
-    return failed | compare(ref, traj, plane=sc.plane, material=sc.material, gravity=sc.gravity,
-                            basis=_basis_of(stats))
+    """Metric columns of one row; a failed run (diverged, or no trajectory) gets `status = failed`, its reason and
+    no accuracy metrics (a truncated trajectory would look accurate)."""
+    if traj is None or ref is None or stats.get("failed"):
+        return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
+    return {"status": "ok", "failure": ""} | compare(ref, traj, plane=sc.plane, material=sc.material,
+                                                     gravity=sc.gravity, basis=_basis_of(stats))
 
 
 def _basis_of(stats: dict) -> np.ndarray | None:

@@ -16,10 +16,11 @@ LICROM_AFFINE = {"r": 24, "epochs": EPOCHS, "points": POINTS, "affine": True, "c
 VARIANTS: dict[str, list[Variant]] = {
     "licrom": [Variant("licrom", LICROM, label="r20")],
     "licrom-affine": [Variant("licrom", LICROM_AFFINE, label="affine-r24"),
-                      Variant("licrom", LICROM_AFFINE, label="affine-r24-remesh", remesh="alt"),
+                      Variant("licrom", LICROM_AFFINE, label="affine-r24-remesh", remesh="alt", model="affine-r24"),
                       Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60"),
                       Variant("licrom", LICROM_AFFINE | {"scheme": "projected_gradient"}, label="affine-r24-pg")],
-    "pod": [Variant("pod", {"r": 20}, label="r20"), Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt")],
+    "pod": [Variant("pod", {"r": 20}, label="r20"),
+            Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt", model="r20")],
     "affine": [Variant("affine", {}, label="affine12")],
     # accuracy-for-time sweep of the full-space solver: looser Newton tolerance
     "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3")],

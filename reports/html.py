@@ -190,7 +190,9 @@ def _remeshing(frame: pd.DataFrame) -> str:
     rows = frame[frame["train_mesh"].notna() & (frame["train_mesh"].astype(str) != "")].copy()
     if not (rows["mesh"] != rows["train_mesh"]).any():
         return _note("No remeshing rows (no run on a mesh other than its model's training mesh).")
-    rows["solver variant"] = variant_labels(rows)
+    # one model = solver + its `model` label (variants that differ only by the mesh they ran on share it)
+    rows["solver variant"] = (rows["solver"].astype(str) + "/" + rows["model"].astype(str) if "model" in rows
+                              else variant_labels(rows))
     rows["pos_rmse_rel"] = pd.to_numeric(rows["pos_rmse_rel"], errors="coerce")
     keys = ["solver variant", "train_mesh"] + (["split"] if "split" in rows else [])
     table = (rows.groupby(keys + ["mesh"], dropna=False)["pos_rmse_rel"]

@@ -76,6 +76,13 @@ def _solver(model: Model, W: np.ndarray, device: str, cubature: str, scheme: str
     solver = ReducedSolver(model, W, cub, scheme=scheme, device=device, seed=seed, name=name)
     solver.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0])),
                    "basis_path": basis_path}
+    if scheme == "projected_gradient":
+        # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
+        from solvers.model import initial_state
+
+        limit = solver.projected_gradient_alpha_limit(initial_state(model), model.scenario.time.dt)
+        solver.alpha = 0.9 * limit
+        solver.info["pg_alpha"] = solver.alpha
     return solver
 
 
