@@ -109,6 +109,13 @@ class TetMesh:
         """Sorted indices of the vertices on the boundary, (s,) int64."""
         return np.unique(self.surface)
 
+    def digest(self) -> str:
+        """Hash of the arrays X and tets, 16 hex digits: identifies the mesh's content, not its recipe.
+
+        TetWild is not repeatable, so two machines may hold different meshes for one recipe key.
+        """
+        return hashlib.sha256(self.X.tobytes() + self.tets.tobytes()).hexdigest()[:16]
+
     def scaled(self, factor: float) -> TetMesh:
         """The same mesh with rest positions multiplied by `factor` (> 0) [-]."""
         return replace(self, X=self.X * factor)
@@ -208,8 +215,8 @@ def _checked_orientation(X: Array, tets: Array, source: str, fix_orientation: bo
         tets[inverted, 1], tets[inverted, 2] = tets[inverted, 2], tets[inverted, 1].copy()
         return tets
     _require(~inverted, source, "tet", "tets are inverted (negative volume)",
-             "Tets must be ordered so that det(X1 - X0, X2 - X0, X3 - X0) > 0; swap two vertices of each "
-             "inverted tet, or load with fix_orientation=True")
+             "Tets must be ordered so that det(X1 - X0, X2 - X0, X3 - X0) > 0: swap two vertices of each "
+             "inverted tet, or let read_mesh_file / validate_mesh flip them (fix_orientation=True)")
     return tets
 
 
@@ -303,19 +310,23 @@ def _build_structured(p: Mapping[str, Any]) -> tuple[Array, Array]:
 
 
 def _build_sphere(p: Mapping[str, Any]) -> tuple[Array, Array]:
-    return _tetwild_snapped(*meshgen.icosphere(p["radius"], p["subdivisions"], p["rotation_deg"]), p["tetwild"])
+    V, F = meshgen.icosphere(p["radius"], p["subdivisions"], p["rotation_deg"])
+    # Snap onto a much finer icosphere: boundary vertices land on the sphere itself (within ~2e-5 r).
+    return _tetwild_snapped(V, F, p["tetwild"], meshgen.icosphere(p["radius"], p["snap_subdivisions"]))
 
 
 def _build_cheese(p: Mapping[str, Any]) -> tuple[Array, Array]:
     V, F = meshgen.cheese_surface(**p["shape"], circular_segments=p["circular_segments"])
-    return _tetwild_snapped(V, F, p["tetwild"])
+    return _tetwild_snapped(V, F, p["tetwild"], (V, F))
 
 
-def _tetwild_snapped(V: Array, F: Array, settings: Mapping[str, Any]) -> tuple[Array, Array]:
-    """TetWild mesh of the surface (V, F), positively oriented, boundary snapped onto the surface."""
+def _tetwild_snapped(
+    V: Array, F: Array, settings: Mapping[str, Any], snap_target: tuple[Array, Array]
+) -> tuple[Array, Array]:
+    """TetWild mesh of the surface (V, F), positively oriented, boundary snapped onto `snap_target` (V', F')."""
     X, tets = meshgen.tetrahedralize(V, F, **settings)
     X, tets, surface = validate_mesh(X, tets, "TetWild output", fix_orientation=True)
-    return meshgen.snap_to_surface(X, tets, np.unique(surface), V, F), tets
+    return meshgen.snap_to_surface(X, tets, np.unique(surface), *snap_target), tets
 
 
 @dataclass(frozen=True, eq=False)
@@ -350,7 +361,8 @@ class Recipe:
         return self.builder(self.params)
 
 
-_STRUCTURED: dict[str, tuple[tuple[float, float, float], tuple[float, float, float], dict[str, tuple[int, int, int]]]] = {
+Triple = tuple[float, float, float]
+_STRUCTURED: dict[str, tuple[Triple, Triple, dict[str, tuple[int, int, int]]]] = {
     # name: (size [m], origin [m], resolution -> hex divisions (nx, ny, nz)); 6 tets per hex.
     "block": ((0.2, 0.1, 0.2), (-0.1, 0.0, -0.1), {
         "coarse": (6, 3, 6), "coarse_alt": (8, 4, 8), "medium": (12, 6, 12), "medium_alt": (16, 8, 16),
@@ -374,7 +386,7 @@ _SPHERE: dict[str, dict[str, Any]] = {
                "tetwild": {"edge_length_fac": 0.045, "epsilon": 1.5e-3}},
     "medium_alt": {"subdivisions": 4, "rotation_deg": [17.0, 31.0, 47.0],
                    "tetwild": {"edge_length_fac": 0.05, "epsilon": 1.7e-3}},
-    "fine": {"subdivisions": 5, "rotation_deg": [0.0, 0.0, 0.0],
+    "fine": {"subdivisions": 4, "rotation_deg": [0.0, 0.0, 0.0],
              "tetwild": {"edge_length_fac": 0.02, "epsilon": 5e-4}},
 }
 
@@ -393,7 +405,7 @@ _CHEESE: dict[str, dict[str, Any]] = {
     "coarse_alt": {"circular_segments": 32, "tetwild": {"edge_length_fac": 0.16, "epsilon": 7e-3}},
     "medium": {"circular_segments": 48, "tetwild": {"edge_length_fac": 0.045, "epsilon": 1.5e-3}},
     "medium_alt": {"circular_segments": 40, "tetwild": {"edge_length_fac": 0.05, "epsilon": 1.7e-3}},
-    "fine": {"circular_segments": 96, "tetwild": {"edge_length_fac": 0.02, "epsilon": 5e-4}},
+    "fine": {"circular_segments": 96, "tetwild": {"edge_length_fac": 0.017, "epsilon": 5e-4}},
 }
 
 
@@ -402,7 +414,8 @@ def _recipes() -> dict[str, dict[str, Recipe]]:
     recipes: dict[str, dict[str, Recipe]] = {
         "cheese": {res: Recipe("cheese", res, _build_cheese, {"shape": CHEESE_SHAPE, **p}, stored=True)
                    for res, p in _CHEESE.items()},
-        "sphere": {res: Recipe("sphere", res, _build_sphere, {"radius": SPHERE_RADIUS, **p}, stored=True)
+        "sphere": {res: Recipe("sphere", res, _build_sphere,
+                               {"radius": SPHERE_RADIUS, "snap_subdivisions": 6, **p}, stored=True)
                    for res, p in _SPHERE.items()},
     }
     for name, (size, origin, divisions) in _STRUCTURED.items():
@@ -455,7 +468,7 @@ def load_mesh(spec: MeshSpec, base_dir: Path | None = None) -> TetMesh:
 def catalogue_mesh(entry: Recipe) -> TetMesh:
     """Build a structured entry, or load a stored one (shipped file, then cache), generating it if missing."""
     if not entry.stored:
-        return make_mesh(*entry.build(), entry.label, fix_orientation=True)
+        return _built_mesh(entry)
     for path in (shipped_path(entry), cache_path(entry)):
         arrays = _read_stored(path, entry.key)
         if arrays is not None:
@@ -493,6 +506,15 @@ def _read_stored(path: Path, key: str) -> tuple[Array, Array] | None:
         return None
 
 
+def _built_mesh(entry: Recipe) -> TetMesh:
+    """Run a recipe and validate its output (fixing orientation); a failure names the catalogue entry."""
+    try:
+        return make_mesh(*entry.build(), entry.label, fix_orientation=True)
+    except MeshError as error:
+        raise MeshError(entry.label, error.value, f"the generator made an invalid mesh: {error.reason}. "
+                        "For TetWild entries, generating again may succeed: fTetWild is not repeatable") from error
+
+
 def generate_and_store(entry: Recipe, path: Path) -> TetMesh:
     """Run a recipe, validate (fixing orientation), and write the mesh atomically to `path` (.npz).
 
@@ -500,13 +522,18 @@ def generate_and_store(entry: Recipe, path: Path) -> TetMesh:
     versions and generation time [s].
     """
     start = time.perf_counter()
-    mesh = make_mesh(*entry.build(), entry.label, fix_orientation=True)
+    mesh = _built_mesh(entry)
     provenance = {"seconds": round(time.perf_counter() - start, 2),
                   **{lib: _version(lib) for lib in ("pytetwild", "manifold3d", "numpy")}}
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile(dir=path.parent, prefix=path.stem, suffix=".tmp", delete=False) as file:
-        np.savez_compressed(file, X=mesh.X, tets=mesh.tets.astype(np.int32), key=entry.key,
-                            params=json.dumps(entry.params, sort_keys=True), provenance=json.dumps(provenance))
+        try:
+            np.savez_compressed(file, X=mesh.X, tets=mesh.tets.astype(np.int32), key=entry.key,
+                                params=json.dumps(entry.params, sort_keys=True),
+                                provenance=json.dumps(provenance))
+        except BaseException:
+            os.unlink(file.name)
+            raise
     os.chmod(file.name, 0o644)  # NamedTemporaryFile creates 0600
     os.replace(file.name, path)
     return mesh

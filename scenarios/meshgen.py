@@ -1,9 +1,9 @@
 """Mesh generators for the catalogue: structured boxes (pure numpy) and TetWild meshes of CSG surfaces.
 
-Every generator returns raw arrays `(X, tets)`: rest positions X (n, 3) float64 [m] and tets (m, 4) integer
-vertex indices. Orientation and validity are enforced afterwards by `scenarios.meshes.validate_mesh`.
-The world's up axis is +y. manifold3d and pytetwild are imported lazily: loading a shipped or cached mesh
-needs neither.
+Surface generators (`icosphere`, `cheese_surface`) return (V (v, 3) [m], F (f, 3) outward triangles);
+volume generators (`structured_box`, `tetrahedralize`) return raw (X (n, 3) float64 [m], tets (m, 4)).
+Validity is enforced afterwards by `scenarios.meshes.validate_mesh`. The world's up axis is +y.
+manifold3d, pytetwild and pyvista are imported lazily: loading a shipped or cached mesh needs none of them.
 """
 
 from __future__ import annotations
