@@ -1,0 +1,58 @@
+"""Per-step benchmarks (pytest-benchmark): the full-space step and reduced steps on the same scene, side by side.
+
+Run with `python -m pytest tests/benchmarks --benchmark-json out/benchmarks.json` (.ci/run does); they are not part
+of the default test run. Each benchmark steps from the same mid-contact state (the quick suite's first scenario
+after 10 steps), so the numbers are directly comparable; compare them as ratios within one run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench.cli import resolve_scenario
+from scenarios.meshes import load_mesh
+from solvers.baselines import affine_basis, mass_orthonormalise
+from solvers.full.solver import FullSpaceSolver
+from solvers.licrom.cubature import uniform_cubature
+from solvers.licrom.reduced import ReducedSolver
+from solvers.model import State, build_model, initial_state
+
+
+@pytest.fixture(scope="module")
+def scene():
+    sc = resolve_scenario("quick/p1_mu0.5")
+    model = build_model(sc, load_mesh(sc.mesh))
+    solver = FullSpaceSolver(model)
+    state = initial_state(model)
+    for _ in range(10):
+        out = State(state.x, state.v, state.t)
+        solver.step(state, out, sc.time.dt)
+        state = out
+    return model, solver, state
+
+
+def reduced_basis(model, r: int) -> np.ndarray:
+    """Affine columns plus smooth random ones (a stand-in for a trained field of the same size)."""
+    W = affine_basis(model.X)
+    if r > 12:
+        rng = np.random.default_rng(0)
+        Xh = (model.X - model.X.mean(0)) / model.X.std(0)
+        feats = np.concatenate([Xh**2, Xh[:, [0]] * Xh[:, [1]], Xh[:, [1]] * Xh[:, [2]], np.sin(2 * Xh)], axis=1)
+        extra = np.einsum("nf,fkr->nkr", feats, rng.standard_normal((feats.shape[1], 3, r - 12)))
+        W = np.concatenate([W, extra], axis=2)
+    return mass_orthonormalise(W, model.mass)
+
+
+def test_full_step(benchmark, scene):
+    model, solver, state = scene
+    benchmark(lambda: solver.step(state, State(state.x, state.v, state.t), model.scenario.time.dt))
+
+
+@pytest.mark.parametrize("r, cubature", [(12, 60), (24, 60), (24, None)])
+def test_reduced_step(benchmark, scene, r, cubature):
+    model, _, state = scene
+    cub = uniform_cubature(model, cubature, seed=0) if cubature else None
+    solver = ReducedSolver(model, reduced_basis(model, r), cub)
+    solver.init_state(state)
+    benchmark(lambda: solver.step(state, State(state.x, state.v, state.t), model.scenario.time.dt))
