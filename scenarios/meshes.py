@@ -11,10 +11,13 @@ Catalogue meshes (`catalogue()` lists names and resolutions; `scenarios.meshgen`
 Resolutions: `coarse` (CI), `medium`, `fine` (on demand only), and `coarse_alt` / `medium_alt`: the same shape
 meshed independently at another resolution, for remeshing checks.
 
-TetWild meshes are slow to make, so they are stored as .npz: `coarse` and `coarse_alt` ship in
-`scenarios/meshes/`; the others are generated on first use into `$FRICTIONBENCH_CACHE/meshes/` (default
-`~/.cache/frictionbench/meshes/`), keyed by a hash of the recipe. Structured meshes are rebuilt on each load.
-`python -m scenarios.meshes --help` builds cache entries and rewrites the shipped files.
+TetWild meshes are slow to make and not repeatable (fTetWild gives a slightly different mesh on every run),
+so they are stored as .npz: `coarse` and `coarse_alt` ship in `scenarios/meshes/`; the others are generated
+on first use into `$FRICTIONBENCH_CACHE/meshes/` (default `~/.cache/frictionbench/meshes/`), keyed by a hash
+of the recipe (`Recipe.key`); `TetMesh.digest()` identifies a mesh's content. After TetWild, boundary
+vertices are snapped onto the exact shape (flat faces come out flat, sphere vertices on the sphere).
+Structured meshes are rebuilt on each load. `python -m scenarios.meshes --help` builds cache entries and
+rewrites the shipped files.
 """
 
 from __future__ import annotations
@@ -426,8 +429,9 @@ def _recipes() -> dict[str, dict[str, Recipe]]:
 
 
 _RECIPES = _recipes()
-SHIPPED = (("cheese", "coarse"), ("cheese", "coarse_alt"), ("sphere", "coarse"), ("sphere", "coarse_alt"))
-"""Catalogue entries committed under scenarios/meshes/ so that CI never runs TetWild."""
+SHIPPED = tuple((shape, res) for shape in ("cheese", "sphere") for res in ("coarse", "coarse_alt", "medium", "medium_alt"))
+"""Catalogue entries committed under scenarios/meshes/: CI never runs TetWild, and since fTetWild does not give the
+same mesh twice, these are the only TetWild meshes that are the same on every machine."""
 
 
 def catalogue() -> dict[str, tuple[str, ...]]:
