@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from functools import lru_cache
 from pathlib import Path
 
 from scenarios.load import scenario_to_dict
@@ -15,14 +16,15 @@ from scenarios.model import MeshSpec, Scenario
 from solvers.trajectory import Trajectory, write_json_atomic
 
 
+@lru_cache(maxsize=64)
 def mesh_identity(spec: MeshSpec) -> str:
-    """What a mesh spec resolves to: the catalogue recipe's key (changes when the generator or its parameters
-    change), or the file path (whose contents the scenario hash already covers)."""
+    """What a mesh spec resolves to: a digest of the actual vertices and tets (TetWild does not give the same mesh
+    twice, so a recipe does not identify a mesh), or the file path (whose contents the scenario hash covers)."""
     if spec.path:
         return spec.path
-    from scenarios.meshes import recipe
+    from scenarios.meshes import load_mesh
 
-    return recipe(spec.name, spec.resolution).key
+    return load_mesh(spec).digest()
 
 
 def run_key(scenario: Scenario, solver: str, params: dict, mesh: MeshSpec | None = None) -> str:
