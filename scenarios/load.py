@@ -64,6 +64,7 @@ import math
 import numbers
 import os
 import re
+import sys
 import tomllib
 from collections.abc import Collection, Mapping
 from pathlib import Path
@@ -408,10 +409,11 @@ def _number(value: object, field: str, *, gt: float | None = None, ge: float | N
 
 
 def _finite(x: float, field: str, context: str) -> float:
-    """`x` unless it is nan or infinite."""
+    """`x` unless it is nan or infinite; -0.0 and subnormal values become 0.0, so that equal scenarios hash
+    equally even in a process whose floating-point unit flushes subnormals to zero (as torch and taichi set)."""
     if not math.isfinite(x):
         raise ScenarioError(field, x, f"must be finite {context}".rstrip())
-    return x
+    return 0.0 if abs(x) < sys.float_info.min else x
 
 
 def _vec3(value: object, field: str) -> Vec3:
