@@ -30,14 +30,36 @@ from solvers.trajectory import write_json_atomic
 @dataclass(frozen=True)
 class Variant:
     """One solver configuration of the matrix: solver name, parameters, label, and an optional other mesh
-    resolution of the same shape (remeshing; compared with the full-space run on that mesh). `model` names the
-    trained model a remeshed variant shares with its training-mesh variant (default: the label)."""
+    resolution of the same shape (remeshing; compared with the full-space run on that mesh, or, with `transfer`,
+    carried onto the reference mesh and compared with the reference itself: accuracy across resolutions).
+    `model` names the trained model a remeshed variant shares with its training-mesh variant (default: the
+    label); `overrides` and `dt_scale` change the scenario (e.g. a larger time step)."""
 
     solver: str
     params: dict = field(default_factory=dict)
     label: str = ""
     remesh: str | None = None
     model: str = ""
+    overrides: dict = field(default_factory=dict)
+    dt_scale: float = 1.0
+    transfer: bool = False
+
+    def scenario(self, sc: Scenario) -> Scenario:
+        """The member's scenario with this variant's `overrides` (dotted fields, e.g. {"contact.stiffness": 1e6})
+        and its time step times `dt_scale`, validated by the scenario loader."""
+        if not self.overrides and self.dt_scale == 1.0:
+            return sc
+        from scenarios.load import scenario_from_dict, scenario_to_dict
+
+        d = scenario_to_dict(sc)
+        d["time"]["dt"] = sc.time.dt * self.dt_scale
+        for dotted, value in self.overrides.items():
+            *path, last = dotted.split(".")
+            table = d
+            for part in path:
+                table = table[part]
+            table[last] = value
+        return scenario_from_dict(d, source=f"variant {self.label or self.solver}")
 
 
 @dataclass(frozen=True)
@@ -106,7 +128,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     t0 = time.perf_counter()
     refs = {m.scenario.name: Task(m.scenario, "full", {}) for m in suite.scenarios}
     remesh_refs = [Task(m.scenario, "full", {}, mesh_variant(m, v.remesh))
-                   for m in suite.scenarios for v in variants if v.remesh]
+                   for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
     run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "full-space references")
     resolved = prepare_variants(suite, variants, store, refs, out / "models", device)
     tasks = []
@@ -114,7 +136,8 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
         for v, params in member_variants(resolved, variants, m):
             if params is None:
                 continue
-            tasks.append(Task(m.scenario, v.solver, params, mesh_variant(m, v.remesh) if v.remesh else None))
+            tasks.append(Task(v.scenario(m.scenario), v.solver, params,
+                              mesh_variant(m, v.remesh) if v.remesh else None))
     run_tasks(tasks, store, device, jobs, executor, "solver variants")
     rows = collect_rows(suite, refs, resolved, variants, store)
     from reports.table import write_results_csv
@@ -160,12 +183,21 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                                     "failure": "no reduced model for this mesh shape"})
                 continue
             mesh = mesh_variant(m, v.remesh) if v.remesh else None
-            task = Task(sc, v.solver, params, mesh)
+            task = Task(v.scenario(sc), v.solver, params, mesh)
             traj, stats = store.load(task.key)
-            # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed)
-            v_ref, v_ref_stats = store.load(Task(sc, "full", {}, mesh).key) if mesh else (ref, ref_stats)
+            # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed),
+            # or against the reference itself after carrying the trajectory onto its mesh (`transfer`)
+            if mesh is None or v.transfer:
+                v_ref, v_ref_stats = ref, ref_stats
+                if mesh is not None and traj is not None:
+                    from bench.transfer import transfer_to_mesh
+
+                    traj = transfer_to_mesh(traj, ref)
+            else:
+                v_ref, v_ref_stats = store.load(Task(sc, "full", {}, mesh).key)
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
+                          "dt": task.scenario.time.dt,
                           "train_mesh": sc.mesh.key if "shape" in params else ""}
             rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, sc, stats))
     return rows

@@ -22,7 +22,10 @@ VARIANTS: dict[str, list[Variant]] = {
     "pod": [Variant("pod", {"r": 20}, label="r20"),
             Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt", model="r20")],
     "affine": [Variant("affine", {}, label="affine12")],
-    # accuracy-for-time sweep of the full-space solver: looser Newton tolerance
-    "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3")],
+    # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh
+    # (the other mesh of the shape, carried onto the reference mesh for the comparison)
+    "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3"),
+                   Variant("full", {}, label="dt2x", dt_scale=2.0),
+                   Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)],
 }
 DEFAULT = "licrom,licrom-affine,pod,affine,full-sweep"

@@ -102,3 +102,34 @@ def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_f
     pod = results[results["variant"] == "r4"]
     assert pod["pos_rmse_rel"].notna().all() and (pod["status"] == "ok").all()
     assert (pod["train_mesh"] == "block/coarse").all()
+
+
+def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tmp_path, suite_file):
+    from bench.runner import Variant
+
+    variants = [Variant("full", {}, label="dt2x", dt_scale=2.0),
+                Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)]
+    results = pd.read_csv(run_suite(str(suite_file), tmp_path / "out", variants=variants, jobs=1, report=False))
+    dt2 = results[results["variant"] == "dt2x"]
+    assert (dt2["dt"] == 0.02).all() and (dt2["frames_compared"] == 3).all()  # t = 0, 0.02, 0.04
+    assert (dt2["pos_rmse_rel"] > 0).all() and (dt2["pos_rmse_rel"] < 0.05).all()
+    other = results[results["variant"] == "other-mesh"]
+    assert (other["mesh"] == "block/coarse_alt").all()
+    assert (other["pos_rmse_rel"] > 0).all() and (other["pos_rmse_rel"] < 0.02).all()
+
+
+def test_transfer_reproduces_a_linear_field_exactly(block):
+    import numpy as np
+
+    from bench.transfer import transfer_to_mesh
+    from scenarios.meshes import load_mesh
+    from scenarios.model import MeshSpec
+    from solvers.trajectory import Trajectory
+
+    other = load_mesh(MeshSpec("block", "coarse_alt"))
+    A = np.array([[0.1, 0.02, 0.0], [0.0, -0.05, 0.03], [0.01, 0.0, 0.2]])
+    src = Trajectory(t=np.array([0.0]), x=(block.X + block.X @ A.T + 0.3)[None], X=block.X, tets=block.tets,
+                     surface=block.surface)
+    dst = Trajectory(t=np.array([0.0]), x=other.X[None], X=other.X, tets=other.tets, surface=other.surface)
+    moved = transfer_to_mesh(src, dst)
+    assert np.allclose(moved.x[0], other.X + other.X @ A.T + 0.3, atol=1e-12)
