@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pandas as pd
@@ -133,3 +134,26 @@ def test_transfer_reproduces_a_linear_field_exactly(block):
     dst = Trajectory(t=np.array([0.0]), x=other.X[None], X=other.X, tets=other.tets, surface=other.surface)
     moved = transfer_to_mesh(src, dst)
     assert np.allclose(moved.x[0], other.X + other.X @ A.T + 0.3, atol=1e-12)
+
+
+def test_killed_run_resumes_without_recomputing(tmp_path, suite_file):
+    """SIGKILL a real `frictionbench run` once its first run is stored; the rerun keeps that one as it was."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", str(suite_file), "--solvers", "full",
+           "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 300
+    while not list((out / "runs").glob("*/stats.json")) and time.time() < deadline:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {p: p.stat().st_mtime_ns for p in (out / "runs").glob("*/stats.json")}
+    assert 1 <= len(finished) and not (out / "results.csv").exists()
+    assert subprocess.run(cmd, capture_output=True).returncode == 0
+    assert all(p.stat().st_mtime_ns == t for p, t in finished.items())  # nothing finished was recomputed
+    assert len(list((out / "runs").glob("*/stats.json"))) == 2 and len(pd.read_csv(out / "results.csv")) == 2
