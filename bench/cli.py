@@ -85,15 +85,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def parse_variants(spec: str | None, epochs: int | None = None) -> list:
-    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`);
-    `epochs` overrides the training epochs of the variants that train."""
+def parse_variants(spec: str | None, epochs: int | None = None, suite: str | None = None) -> list:
+    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
+    suite's own set in SUITE_DEFAULTS, else DEFAULT); `epochs` overrides the training epochs of the variants that
+    train."""
     from dataclasses import replace
 
-    from bench.variants import DEFAULT, VARIANTS
+    from bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS
 
     out = []
-    for name in [s for s in (spec or DEFAULT).split(",") if s and s != "full"]:
+    for name in [s for s in (spec or SUITE_DEFAULTS.get(suite or "", DEFAULT)).split(",") if s and s != "full"]:
         if name not in VARIANTS:
             raise ScenarioError("--solvers", name, f"unknown variant; known: {sorted(VARIANTS)}")
         out.extend(replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
@@ -105,7 +106,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
     from bench.runner import run_suite
 
-    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs), device=args.device, jobs=args.jobs,
+    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device, jobs=args.jobs,
                     executor=args.executor, report=not args.no_report)
     print(f"results: {csv}")
     if not args.no_report:
@@ -155,7 +156,9 @@ def cmd_gate(args: argparse.Namespace) -> int:
     from bench.reporting import GATES_FILE
     from bench.runner import load_run_info
 
-    suite = load_run_info(args.dir)["suite"]
+    from scenarios.suites import load_suite
+
+    suite = load_suite(load_run_info(args.dir)["suite"]).name  # gates name suites; a run may name a suite file
     verdicts = check(pd.read_csv(Path(args.dir) / "results.csv"), load_gates(args.gates or GATES_FILE), suite)
     failed = [v for v in verdicts if not v.passed]
     for v in failed:
@@ -187,7 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
     s.add_argument("--suite", required=True)
     s.add_argument("--solvers", default=None, help="comma list of variant sets besides the full reference "
-                   "(default: every set of bench.variants; `full` for the reference only)")
+                   "(default: the suite's set in bench.variants.SUITE_DEFAULTS, else every set of bench.variants; "
+                   "`full` for the reference only)")
     s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--jobs", type=int, default=1)
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])

@@ -6,6 +6,7 @@ Format (`gates.toml` at the repository root):
     suite = "quick"            # which suite's results it applies to
     variant = "full/reference" # `solver/variant` label of the rows (`*` for every row)
     split = "test"             # optional: only rows of this split
+    tag = "expect-stick"       # optional: only rows whose scenario has this tag
     metric = "pos_rmse_rel"
     max = 0.05                 # and/or `min = ...`; boolean metrics use `equals = true`
 
@@ -59,8 +60,12 @@ def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]
         sel = results["variant"].notna() if gate.get("variant", "*") == "*" else labels == gate["variant"]
         if "split" in gate:
             sel &= results["split"] == gate["split"]
+        if "tag" in gate:
+            tags = results["tags"] if "tags" in results else pd.Series("", index=results.index)
+            sel &= tags.fillna("").astype(str).str.split().apply(lambda t: gate["tag"] in t)
         limit = " ".join(f"{k} {gate[k]}" for k in ("min", "max", "equals") if k in gate)
-        name = gate.get("name", f"{gate.get('variant', '*')}:{gate['metric']}")
+        name = gate.get("name", f"{gate.get('variant', '*')}:{gate['metric']}"
+                                + (f"[{gate['tag']}]" if "tag" in gate else ""))
         rows = results[sel]
         if rows.empty:
             verdicts.append(Verdict(name, "(none)", gate.get("variant", "*"), gate["metric"], None, limit, False))

@@ -14,7 +14,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from scenarios.model import Material, Plane
+from scenarios.meshes import TetMesh
+from scenarios.model import Contact, Material, Plane
+from solvers.physics.contact import barrier_pressure, normal_pressure
+from solvers.physics.friction import creep_speed
 from solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
 from solvers.trajectory import Trajectory
 
@@ -28,7 +31,8 @@ METRIC_KEYS: tuple[str, ...] = (
     "frames_compared",
     "pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "proj_rmse_rel",
     "stick", "stick_ref", "stick_agree", "end_speed", "end_speed_ref",
-    "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "energy_ratio_max",
+    "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "inverted_tets_final",
+    "volume_ratio_final", "energy_ratio_max", "creep_speed_law", "creep_ratio",
 )
 
 
@@ -199,9 +203,7 @@ def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
     """
     n, d = _unit_plane(plane_normal, 0.0 if plane_offset is None else plane_offset)
     L = bbox_diagonal(traj.X) if L is None else L
-    t = traj.t
-    tail = t >= t[-1] - tail_fraction * (t[-1] - t[0])
-    tail[-min(2, t.size):] = True
+    tail = _tail(traj.t, tail_fraction)
     v_c = center_of_mass(vertex_velocities(traj)[tail], masses)
     speed = float(np.mean(np.linalg.norm(_tangential(v_c, n), axis=-1)))
     at_rest = speed < speed_tol_rel * L
@@ -240,9 +242,15 @@ def finite(traj: Trajectory) -> bool:
 
 
 def max_penetration_rel(traj: Trajectory, plane_normal: ArrayLike3, plane_offset: float) -> float:
-    """max(0, max over frames and vertices of -(n . x_ki - d)) / L for the plane n . x = d (n normalised)."""
+    """max(0, max over frames k and surface vertices i of -(n . x_ki - d)) / L for the plane n . x = d.
+
+    Contact acts on the boundary surface (DESIGN.md section 5), so penetration is the surface's. An interior
+    vertex can only pass the plane while the surface stays above it if the elements between them invert,
+    which `inverted_tets` reports.
+    """
     n, d = _unit_plane(plane_normal, plane_offset)
-    depth = float(d - np.min(traj.x @ n))
+    points = np.unique(traj.surface) if traj.surface.size else slice(None)  # no surface given: every vertex
+    depth = float(d - np.min(traj.x[:, points] @ n))
     return (depth if depth > 0.0 or np.isnan(depth) else 0.0) / bbox_diagonal(traj.X)
 
 
@@ -261,6 +269,53 @@ def inverted_tets(traj: Trajectory) -> tuple[int, int]:
         ever |= bad
         frame_max = max(frame_max, int(bad.sum()))
     return int(ever.sum()), frame_max
+
+
+def volume_ratio(traj: Trajectory, frame: int = -1) -> float:
+    """Total signed volume of a frame over the rest volume, sum_e det(Ds_e) / sum_e det(Dm_e) [-] (1 at rest;
+    a fully mirrored body gives -1)."""
+    return float(np.linalg.det(_edge_matrices(traj.x[frame], traj.tets)).sum()
+                 / np.linalg.det(_edge_matrices(traj.X, traj.tets)).sum())
+
+
+def inverted_tets_in_frame(traj: Trajectory, frame: int = -1) -> int:
+    """Tets with J_e <= 0 in one frame (the last by default)."""
+    det_dm = np.linalg.det(_edge_matrices(traj.X, traj.tets))
+    with np.errstate(invalid="ignore"):
+        return int((np.linalg.det(_edge_matrices(traj.x[frame], traj.tets)) / det_dm <= 0.0).sum())
+
+
+def _tail(t: np.ndarray, tail_fraction: float) -> np.ndarray:
+    """Frames with t >= t_end - tail_fraction (t_end - t_0), at least the last two, (F,) bool."""
+    tail = t >= t[-1] - tail_fraction * (t[-1] - t[0])
+    tail[-min(2, t.size):] = True
+    return tail
+
+
+def creep_speed_law(traj: Trajectory, plane: Plane, contact: Contact, material: Material,
+                    gravity: ArrayLike3 = GRAVITY, tail_fraction: float = 0.1) -> float:
+    """The friction law's creep speed [m/s] for the body as it lies at the end: the slip speed s at which
+    sum_i A_i min(k_f s, mu f_n,i) carries the downhill weight M |g_t| (`solvers.physics.friction.creep_speed`).
+
+    A_i are the surface vertices' area shares (rest mesh), f_n,i the contact law's normal pressure at their
+    positions averaged over the tail frames (the frames `stick` averages the speed over; penalty: k_e times
+    penetration, barrier: -kappa b'(d)), M the lumped mass of the material's density, g_t gravity's component
+    along the plane. inf where friction cannot hold the body.
+    """
+    if contact.stiffness is None:
+        raise ValueError("contact.stiffness is 'auto': pass the resolved contact (solvers.model.resolved)")
+    n, d = _unit_plane(plane.normal, plane.offset)
+    mesh = TetMesh(X=traj.X, tets=traj.tets, surface=traj.surface, name="trajectory")
+    area = mesh.surface_vertex_areas()
+    pts = np.flatnonzero(area > 0.0)
+    x = traj.x[_tail(traj.t, tail_fraction)][:, pts]
+    if contact.law == "barrier":
+        fn = barrier_pressure(x, n, d, contact.barrier_stiffness, contact.barrier_distance)
+    else:
+        fn = normal_pressure(x, np.zeros_like(x), n, d, contact.stiffness, 0.0)
+    weight = lumped_masses(traj.X, traj.tets, material.density).sum()
+    g_t = float(np.linalg.norm(_tangential(np.asarray(gravity, dtype=float), n)))
+    return creep_speed(area[pts], fn.mean(axis=0), plane.friction, contact.friction_stiffness, weight * g_t)
 
 
 def _edge_matrices(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -316,27 +371,41 @@ def energy_ratio_max(traj: Trajectory, material: Material, gravity: ArrayLike3 =
 
 
 def stability(traj: Trajectory, *, plane: Plane | None = None, material: Material | None = None,
-              gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None) -> dict[str, float | int | bool | None]:
-    """Stability metrics of one trajectory (no reference needed): finite, max_penetration_rel, inverted_tets,
-    inverted_tets_frame_max, energy_ratio_max. Metrics whose input is missing (no plane, no material) are None."""
+              gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None,
+              contact: Contact | None = None) -> dict[str, float | int | bool | None]:
+    """Stability metrics of one trajectory (no reference needed): finite, max_penetration_rel, inverted_tets
+    (ever), inverted_tets_frame_max, inverted_tets_final, volume_ratio_final, energy_ratio_max, and, for a body
+    on a plane with friction, creep_speed_law and creep_ratio (the end speed along the plane over the law's
+    creep speed: about 1 for a body the law holds, inf for one it cannot hold; None on level ground). Metrics
+    whose input is missing are None."""
     inverted, inverted_frame = inverted_tets(traj)
-    return {
-        "finite": finite(traj),
+    ok = finite(traj)
+    row: dict[str, float | int | bool | None] = {
+        "finite": ok,
         "max_penetration_rel": None if plane is None else max_penetration_rel(traj, plane.normal, plane.offset),
         "inverted_tets": inverted,
         "inverted_tets_frame_max": inverted_frame,
+        "inverted_tets_final": inverted_tets_in_frame(traj),
+        "volume_ratio_final": volume_ratio(traj) if ok else None,
         "energy_ratio_max": None if material is None else energy_ratio_max(traj, material, gravity, masses),
+        "creep_speed_law": None, "creep_ratio": None,
     }
+    if ok and plane is not None and plane.friction > 0 and contact is not None and material is not None:
+        law = creep_speed_law(traj, plane, contact, material, gravity)
+        row["creep_speed_law"] = law
+        if law > 0:  # no creep to compare with on level ground
+            row["creep_ratio"] = stick(traj, plane.normal, masses=masses)[1] / law
+    return row
 
 
 def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, material: Material | None = None,
             gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None,
-            basis: np.ndarray | None = None) -> dict[str, float | int | bool | None]:
+            basis: np.ndarray | None = None, contact: Contact | None = None) -> dict[str, float | int | bool | None]:
     """All metrics of one results row (keys `METRIC_KEYS`), `traj` against the reference `ref` on the same mesh.
 
     masses (n,) weight the centres of mass and energies; by default the lumped masses of `material` if given,
     else uniform. plane (normal, offset) enables slide, stick and penetration metrics; material the energy
-    ratio; basis (n, 3, r) the Euclidean projection error of the reference (a lower bound of pos_rmse_rel for
+    ratio; contact (with plane and material) the creep metrics; basis (n, 3, r) the Euclidean projection error of the reference (a lower bound of pos_rmse_rel for
     any trajectory x = X + W q). Metrics without their input are None.
     """
     if masses is None and material is not None:
@@ -360,5 +429,5 @@ def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, ma
         row["stick_agree"] = row["stick"] == row["stick_ref"]
     if basis is not None:
         row["proj_rmse_rel"] = proj_rmse_rel(ref, basis)
-    row.update(stability(traj, plane=plane, material=material, gravity=gravity, masses=masses))
+    row.update(stability(traj, plane=plane, material=material, gravity=gravity, masses=masses, contact=contact))
     return row

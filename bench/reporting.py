@@ -19,11 +19,11 @@ def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scena
 
     out = Path(out)
     results = pd.read_csv(out / "results.csv")
-    suite = load_run_info(out)["suite"]
-    verdicts = check(results, load_gates(gates_file), suite) if Path(gates_file).is_file() else []
     from scenarios.suites import load_suite
 
-    planes = {m.scenario.name: m.scenario.plane for m in load_suite(suite).scenarios}
+    suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path
+    verdicts = check(results, load_gates(gates_file), suite.name) if Path(gates_file).is_file() else []
+    planes = {m.scenario.name: m.scenario.plane for m in suite.scenarios}
     store = RunStore(out / "runs")
     runs = []
     for scenario in list(dict.fromkeys(results["scenario"]))[:max_scenarios]:
@@ -40,4 +40,4 @@ def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scena
                 if traj is not None:
                     others[f"{row['solver']}/{row['variant']}"] = traj
         runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, plane=planes.get(scenario)))
-    return write_report_html(results, out, gates=verdicts, runs=runs, title=f"frictionbench: {suite} suite")
+    return write_report_html(results, out, gates=verdicts, runs=runs, title=f"frictionbench: {suite.name} suite")

@@ -20,10 +20,11 @@ import numpy as np
 from tqdm import tqdm
 
 from bench.executors import make_executor
-from bench.metrics import compare
+from bench.metrics import bbox_diagonal, compare
 from bench.store import RunStore, run_key
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, load_suite
+from solvers.model import resolved
 from solvers.trajectory import write_json_atomic
 
 
@@ -136,8 +137,9 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
         for v, params in member_variants(resolved, variants, m):
             if params is None:
                 continue
-            tasks.append(Task(v.scenario(m.scenario), v.solver, params,
-                              mesh_variant(m, v.remesh) if v.remesh else None))
+            task = variant_task(v, m, params)
+            if isinstance(task, Task):
+                tasks.append(task)
     run_tasks(tasks, store, device, jobs, executor, "solver variants")
     rows = collect_rows(suite, refs, resolved, variants, store)
     from reports.table import write_results_csv
@@ -151,6 +153,18 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
         build_report(out)
     return csv
+
+
+def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:
+    """The task of a variant on a member, or the reason it has none (its overrides make an invalid scenario,
+    e.g. the barrier law on a body that starts touching the plane)."""
+    from scenarios.errors import ScenarioError
+
+    try:
+        sc = v.scenario(member.scenario)
+    except ScenarioError as err:
+        return f"not applicable: {err}"
+    return Task(sc, v.solver, params, mesh_variant(member, v.remesh) if v.remesh else None)
 
 
 def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) -> list[tuple[Variant, dict | None]]:
@@ -173,7 +187,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
         ref_task = refs[sc.name]
         ref, ref_stats = store.load(ref_task.key)
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
-                "mu": sc.plane.friction if sc.plane else None}
+                "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
         rows.append(base | {"solver": "full", "variant": "reference", "run": ref_task.key}
                     | _timing(ref_stats, ref_stats) | _metrics(ref, ref, sc, ref_stats))
         for v, params in member_variants(resolved, variants, m):
@@ -182,8 +196,11 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                 rows.append(base | {"solver": v.solver, "variant": label, "status": "failed",
                                     "failure": "no reduced model for this mesh shape"})
                 continue
-            mesh = mesh_variant(m, v.remesh) if v.remesh else None
-            task = Task(v.scenario(sc), v.solver, params, mesh)
+            task = variant_task(v, m, params)
+            if not isinstance(task, Task):
+                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": task})
+                continue
+            mesh = task.mesh
             traj, stats = store.load(task.key)
             # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed),
             # or against the reference itself after carrying the trajectory onto its mesh (`transfer`)
@@ -198,14 +215,16 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
                           "dt": task.scenario.time.dt,
-                          "train_mesh": sc.mesh.key if "shape" in params else ""}
-            rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, sc, stats))
+                          "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
+            rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, task.scenario, stats))
     return rows
 
 
 def _timing(stats: dict, ref_stats: dict) -> dict:
-    """Timing columns; speedup = full step time / this step time, both measured in this run."""
-    keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean")
+    """Timing and solver-health columns (Newton failures, line-search stalls, step retries); speedup = full step
+    time / this step time, both measured in this run."""
+    keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
+            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries")
     row = {k: stats.get(k) for k in keys}
     if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
         row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
@@ -217,8 +236,10 @@ def _metrics(ref, traj, sc: Scenario, stats: dict) -> dict:
     no accuracy metrics (a truncated trajectory would look accurate)."""
     if traj is None or ref is None or stats.get("failed"):
         return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
+    sc = resolved(sc, bbox_diagonal(traj.X))  # the automatic contact stiffness the run used
     return {"status": "ok", "failure": ""} | compare(ref, traj, plane=sc.plane, material=sc.material,
-                                                     gravity=sc.gravity, basis=_basis_of(stats))
+                                                     gravity=sc.gravity, basis=_basis_of(stats),
+                                                     contact=sc.contact if sc.effects.friction else None)
 
 
 def _basis_of(stats: dict) -> np.ndarray | None:

@@ -27,5 +27,17 @@ VARIANTS: dict[str, list[Variant]] = {
     "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3"),
                    Variant("full", {}, label="dt2x", dt_scale=2.0),
                    Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)],
+    # the barrier contact law (same friction potential) beside the penalty law of the reference
+    "barrier": [Variant("full", {}, label="barrier", overrides={"contact.law": "barrier"})],
+    # hard suite: every reduced solver family under both contact laws (no remeshing or accuracy sweeps)
+    "hard": [Variant("full", {}, label="barrier", overrides={"contact.law": "barrier"}),
+             Variant("licrom", LICROM, label="r20"),
+             Variant("licrom", LICROM_AFFINE, label="affine-r24"),
+             Variant("licrom", LICROM_AFFINE, label="affine-r24-barrier", model="affine-r24",
+                     overrides={"contact.law": "barrier"}),
+             Variant("pod", {"r": 20}, label="r20"),
+             Variant("affine", {}, label="affine12")],
 }
 DEFAULT = "licrom,licrom-affine,pod,affine,full-sweep"
+SUITE_DEFAULTS = {"hard": "hard"}
+"""Default variant sets of suites that need another matrix than DEFAULT (`frictionbench run` without --solvers)."""

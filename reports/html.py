@@ -206,14 +206,73 @@ def _remeshing(frame: pd.DataFrame) -> str:
             + _table(table))
 
 
-def _stability(frame: pd.DataFrame) -> str:
-    """Stability metrics and failure reasons of every run."""
-    table = _columns(frame, ["scenario", "mesh", "solver", "variant", "status", "finite", "max_penetration_rel",
-                             "inverted_tets", "inverted_tets_frame_max", "energy_ratio_max", "failure"])
-    return (_note("finite: every stored value finite; max_penetration_rel: deepest point below the plane / L; "
-                  "inverted_tets: tets with det F <= 0 in some frame (and most in one frame); energy_ratio_max: "
-                  "largest total energy / initial (kinetic + elastic + gravity, > 1 means energy grew).")
+def _stability(frame: pd.DataFrame, gates: Sequence[object]) -> str:
+    """Which cases pass their gates per solver and law, the contact laws side by side, then every run's
+    stability metrics, solver health and failure reason."""
+    table = _columns(frame, ["scenario", "mesh", "solver", "variant", "law", "status", "finite",
+                             "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "inverted_tets_final",
+                             "volume_ratio_final", "energy_ratio_max", "creep_ratio", "not_converged",
+                             "line_search_stalls", "step_retries", "failure"])
+    return (_stability_matrix(gates) + _contact_laws(frame)
+            + _note("finite: every stored value finite; max_penetration_rel: deepest surface point below the plane "
+                    "/ L; inverted_tets: tets with det F <= 0 in some frame (most in one frame, at the end); "
+                    "volume_ratio_final: volume at the end / rest volume; energy_ratio_max: largest total energy / "
+                    "initial (kinetic + elastic + gravity, > 1 means energy grew); creep_ratio: speed along the "
+                    "plane at the end / the friction law's creep speed (about 1 where the law holds the body); "
+                    "not_converged: steps whose Newton solve failed even after retries; line_search_stalls: Newton "
+                    "iterations without decrease; step_retries: steps redone as two half steps.")
             + _table(table, verdicts=["status", "finite"]))
+
+
+def _stability_matrix(gates: Sequence[object]) -> str:
+    """Case x solver variant: `pass`, or the metrics whose gates failed (from the gate verdicts)."""
+    verdicts = pd.DataFrame([_as_dict(v) for v in gates])
+    if verdicts.empty or not {"scenario", "variant", "metric"} <= set(verdicts):
+        return _note("No gates apply to this suite, so no case is judged here.")
+    verdicts = verdicts[verdicts["scenario"] != "(none)"]
+    failed = (verdicts[~verdicts["passed"].astype(bool)].groupby(["scenario", "variant"])["metric"]
+              .apply(lambda m: ", ".join(sorted(set(m)))))
+    cells = verdicts.groupby(["scenario", "variant"])["passed"].all().map({True: "pass", False: "fail"})
+    cells = cells.where(cells == "pass", "fail: " + failed.reindex(cells.index).fillna(""))
+    matrix = cells.unstack("variant").fillna("")
+    counts = (matrix == "pass").sum().astype(str) + " / " + (matrix != "").sum().astype(str)
+    matrix = pd.concat([matrix, counts.to_frame("cases passed").T]).reset_index(names="scenario")
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in matrix.columns)
+    body = []
+    for _, row in matrix.iterrows():
+        tds = [f'<td class="text">{html.escape(str(row["scenario"]))}</td>']
+        for c in matrix.columns[1:]:
+            v = str(row[c])
+            cls = "text pass" if v == "pass" else "text fail" if v.startswith("fail") else "text"
+            tds.append(f'<td class="{cls}">{html.escape(v)}</td>')
+        body.append("<tr>" + "".join(tds) + "</tr>")
+    return (_note("Cases against the gates (gates.toml) per solver variant and contact law: pass, or the metrics "
+                  "that failed.")
+            + f'<div class="scroll"><table class="stability-matrix">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
+            + "\n".join(body) + "\n</tbody>\n</table></div>")
+
+
+def _contact_laws(frame: pd.DataFrame) -> str:
+    """Per solver variant and contact law: worst penetration, creep, time per step, Newton work, failures."""
+    if "law" not in frame or frame["law"].dropna().nunique() < 2:
+        return ""
+    f = frame.copy()
+    f["label"] = variant_labels(f)
+    num = lambda c: pd.to_numeric(f[c], errors="coerce") if c in f else pd.Series(np.nan, index=f.index)  # noqa: E731
+    f["_creep"] = num("creep_ratio").where(np.isfinite(num("creep_ratio")))
+    rows = []
+    for (label, law), g in f.groupby(["label", "law"], sort=True):
+        rows.append({"variant": label, "law": law, "runs": len(g),
+                     "failed": int((g.get("status", pd.Series("ok", index=g.index)) == "failed").sum()),
+                     "max_penetration_rel": num("max_penetration_rel")[g.index].max(),
+                     "creep_ratio_median": g["_creep"].median(),
+                     "step_ms_median": num("step_ms_median")[g.index].median(),
+                     "newton_iters_mean": num("newton_iters_mean")[g.index].mean(),
+                     "step_retries": num("step_retries")[g.index].sum()})
+    return (_note("Contact laws side by side (every case of the suite): the deepest penetration / L, the median "
+                  "creep ratio where the law holds a body on a slope, the median time per step [ms], Newton "
+                  "iterations per step and step retries.")
+            + _table(pd.DataFrame(rows)))
 
 
 def _placeholder_cell(text: str) -> str:
@@ -289,7 +348,7 @@ def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], ou
         ("error-over-time", "Error over time", _error_over_time(runs) if runs else no_runs),
         ("stick-slip", "Stick/slip agreement", _stick_slip(frame)),
         ("remeshing", "Remeshing", _remeshing(frame)),
-        ("stability", "Stability", _stability(frame)),
+        ("stability", "Stability", _stability(frame, gates)),
         ("renders", "Renders: full versus reduced", _renders(runs, chosen, key_frames) if chosen else no_runs),
         *((f"extra-{i}", heading, fragment) for i, (heading, fragment) in enumerate(extra_sections)),
         ("provenance", "Provenance", _provenance(frame, chosen)),

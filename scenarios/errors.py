@@ -2,6 +2,18 @@
 
 from __future__ import annotations
 
+import json
+import re
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def key_path(field: str, key: object) -> str:
+    """`field.key` as TOML writes it: a key that is not a bare key (empty, spaces, dots, ...) is quoted."""
+    text = str(key)
+    name = text if _BARE_KEY.fullmatch(text) else json.dumps(text)
+    return f"{field}.{name}" if field else name
+
 
 class ScenarioError(ValueError):
     """A scenario, suite or mesh input is invalid.

@@ -33,10 +33,11 @@ optional and defaults to the dataclass default unless said otherwise below):
     No ground at all: write `plane = false` at the top level. Omitting the plane entirely gives the model's
     default plane (horizontal through the origin, mu = 0.5), so a scene without ground always says so.
 
-    [contact]     law = "penalty" | "barrier", stiffness > 0, damping >= 0, friction_stiffness > 0,
+    [contact]     law = "penalty" | "barrier", stiffness > 0 or "auto" (default; see Contact), damping >= 0, friction_stiffness > 0,
                   barrier_distance > 0, barrier_stiffness > 0
     [initial]     clearance >= 0 [m], rotation [deg], translation [m], velocity [m/s],
-                  angular_velocity [rad/s], squash (components > 0)
+                  angular_velocity [rad/s], squash (per-axis scale, components
+                  nonzero, magnitude in [1e-3, 1e3]; a negative component mirrors the body: every tet starts inverted)
                   `clearance = false` keeps the mesh where it is (Initial.clearance = None). Without a plane
                   there is nothing to measure a clearance from: it defaults to false and a number is an error.
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
@@ -70,7 +71,7 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
-from scenarios.errors import ScenarioError
+from scenarios.errors import ScenarioError, key_path
 from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec, Vec3
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
@@ -130,7 +131,7 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         "mesh": mesh,
         "material": _as_dict(s.material, MATERIAL_KEYS),
         "plane": plane,
-        "contact": _as_dict(s.contact, CONTACT_KEYS),
+        "contact": _as_dict(s.contact, CONTACT_KEYS) | ({"stiffness": "auto"} if s.contact.stiffness is None else {}),
         "initial": initial,
         "time": _as_dict(s.time, TIME_KEYS),
         "effects": _as_dict(s.effects, EFFECT_KEYS),
@@ -315,7 +316,7 @@ def _contact(raw: object) -> Contact:
         raise ScenarioError("contact.law", law, f"expected one of {list(CONTACT_LAWS)}")
     return Contact(
         law=law,
-        stiffness=_number(t.get("stiffness", d.stiffness), "contact.stiffness", gt=0.0),
+        stiffness=_stiffness(t.get("stiffness", "auto")),
         damping=_number(t.get("damping", d.damping), "contact.damping", ge=0.0),
         friction_stiffness=_number(t.get("friction_stiffness", d.friction_stiffness), "contact.friction_stiffness",
                                    gt=0.0),
@@ -324,6 +325,15 @@ def _contact(raw: object) -> Contact:
         barrier_stiffness=_number(t.get("barrier_stiffness", d.barrier_stiffness), "contact.barrier_stiffness",
                                   gt=0.0),
     )
+
+
+def _stiffness(value: object) -> float | None:
+    """contact.stiffness: a positive number [Pa/m], or "auto" (None: set when the model is built)."""
+    if isinstance(value, str):
+        if value != "auto":
+            raise ScenarioError("contact.stiffness", value, 'expected a positive number or "auto"')
+        return None
+    return _number(value, "contact.stiffness", gt=0.0)
 
 
 def _initial(raw: object, plane: Plane | None) -> Initial:
@@ -335,8 +345,9 @@ def _initial(raw: object, plane: Plane | None) -> Initial:
     if clearance is not None and plane is None:
         raise ScenarioError("initial.clearance", clearance, "there is no plane to measure it from (plane = false)")
     squash = _vec3(t.get("squash", d.squash), "initial.squash")
-    if min(squash) <= 0.0:
-        raise ScenarioError("initial.squash", list(squash), "every component must be > 0")
+    if not all(1e-3 <= abs(c) <= 1e3 for c in squash):
+        raise ScenarioError("initial.squash", list(squash),
+                            "every component must be nonzero with magnitude in [1e-3, 1e3] (negative mirrors)")
     return Initial(clearance=clearance,
                    rotation=_vec3(t.get("rotation", d.rotation), "initial.rotation"),
                    translation=_vec3(t.get("translation", d.translation), "initial.translation"),
@@ -382,7 +393,7 @@ def _table(value: object, field: str, allowed: tuple[str, ...]) -> Mapping[str, 
         raise ScenarioError(field or "<scenario>", value, "expected a table")
     for key in value:
         if key not in allowed:
-            where = f"{field}.{key}" if field else str(key)
+            where = key_path(field, key)
             close = difflib.get_close_matches(str(key), allowed, n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""
             raise ScenarioError(where, value[key], f"unknown key{hint} (expected one of {list(allowed)})")

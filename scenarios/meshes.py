@@ -156,7 +156,8 @@ def validate_mesh(
     Returns X (n', 3) float64, tets (m, 4) int64 positively oriented, surface (k, 3) int64 outward.
     Raises MeshError (field = source) for: wrong shapes, an empty mesh, non-finite coordinates, indices out
     of range, a vertex repeated within a tet, degenerate or (unless fixed) inverted tets, a face shared by
-    more than two tets, and a boundary that is not a closed, consistently oriented 2-manifold.
+    more than two tets, a boundary that is not a closed, consistently oriented 2-manifold, and a vertex whose
+    tets do not form one solid around it (tets joined only at a vertex or an edge, even inside the body).
     """
     X, tets = _checked_arrays(X, tets, source)
     X, tets = _drop_unreferenced(X, tets)
@@ -165,6 +166,7 @@ def validate_mesh(
     _require(counts <= 2, source, "face", "faces are shared by more than two tets (overlapping tets)")
     surface = faces[counts == 1]
     _check_closed_manifold(surface, source)
+    _check_vertex_stars(tets, source)
     return X, tets, surface
 
 
@@ -273,6 +275,35 @@ def _check_vertex_fans(surface: Array, twin: Array, source: str) -> None:
                     f"separate sheets of surface (e.g. two tets sharing only vertex {first})")
 
 
+def _check_vertex_stars(tets: Array, source: str) -> None:
+    """The tets around every vertex must be connected through faces that contain the vertex.
+
+    Node 4 t + k is tet t at its k-th vertex. Two tets sharing a face join their nodes at the face's three
+    vertices; a vertex whose nodes fall into more than one group joins solids at a single point or along an
+    edge, which the boundary checks miss when the vertex is interior.
+    """
+    m = len(tets)
+    faces = np.sort(tets[:, _TET_FACES].reshape(-1, 3), axis=1)  # face f = 4 t + j
+    order = np.lexsort(faces.T[::-1])
+    same = np.all(faces[order[1:]] == faces[order[:-1]], axis=1)
+    f1, f2 = order[:-1][same], order[1:][same]  # interior faces: the two (tet, face) uses
+    t1, t2 = f1 // 4, f2 // 4
+    verts = faces[f1]  # (k, 3) the shared vertices
+    a, b = (4 * t[:, None] + np.argmax(tets[t][:, :, None] == verts[:, None, :], axis=1)  # node of t at each
+            for t in (t1, t2))                                                             # shared vertex
+    a, b = a.ravel(), b.ravel()
+    graph = coo_matrix((np.ones(a.size), (a, b)), shape=(4 * m, 4 * m))
+    _, group = connected_components(graph, directed=False)
+    pairs = np.unique(np.column_stack([tets.ravel(), group]), axis=0)
+    stars = np.bincount(pairs[:, 0])
+    bad = np.flatnonzero(stars > 1)
+    if len(bad):
+        first = int(bad[0])
+        raise MeshError(source, f"vertex {first}",
+                        f"the mesh is not a manifold solid: at {len(bad)} vertices the tets form separate solids "
+                        f"joined only at the vertex or along an edge (first: vertex {first})")
+
+
 def make_mesh(X: Array, tets: Array, name: str, *, source: str | None = None,
               fix_orientation: bool = False) -> TetMesh:
     """Validate arrays (see `validate_mesh`) and build a TetMesh called `name`; errors name `source` or name."""
@@ -293,8 +324,8 @@ def read_mesh_file(path: Path, *, name: str | None = None, fix_orientation: bool
         raise MeshError(source, source, "mesh file not found")
     try:
         data = meshio.read(path)
-    except Exception as error:  # meshio's readers raise many types for malformed files
-        raise MeshError(source, source, f"meshio cannot read this file ({error})") from error
+    except (Exception, SystemExit) as error:  # meshio's readers raise many types (and exit) on malformed files
+        raise MeshError(source, source, f"meshio cannot read this file ({type(error).__name__}: {error})") from None
     blocks = [cells.data for cells in data.cells if cells.type == "tetra"]
     if not blocks:
         types = sorted({cells.type for cells in data.cells})

@@ -57,7 +57,10 @@ class Contact:
     """Contact law and parameters, all per unit contact area (DESIGN.md section 5).
 
     law: `penalty` (the paper's soft contact) or `barrier` (IPC log barrier).
-    stiffness: k_e [Pa/m], normal force per area per metre of penetration (penalty law).
+    stiffness: k_e [Pa/m], normal force per area per metre of penetration (penalty law); None (TOML "auto", the
+        default) sets it from the material and the initial motion when the model is built:
+        k_e = max(E, rho v^2) / (1e-3 L) (`solvers.physics.contact.auto_penalty_stiffness`), so the penetration is
+        about 1e-3 L times the strain the contact pressure causes.
     damping: k_d [Pa s/m], normal force per area per m/s of approach speed while penetrating.
     friction_stiffness: k_f [Pa s/m], tangential force per area per m/s of slip below the Coulomb limit.
     barrier_distance: dhat [m], activation distance of the barrier law.
@@ -65,7 +68,7 @@ class Contact:
     """
 
     law: str = "penalty"
-    stiffness: float = 1.0e7
+    stiffness: float | None = None
     damping: float = 0.0
     friction_stiffness: float = 1.0e6
     barrier_distance: float = 1.0e-3

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from scenarios.errors import ScenarioError
+from scenarios.errors import ScenarioError, key_path
 from scenarios.load import NAME_PART, read_toml, scenario_from_dict
 from scenarios.model import Scenario
 
@@ -334,7 +334,7 @@ def _table(value: object, field: str, allowed: Sequence[str] | None) -> Mapping[
         raise ScenarioError(field or "<suite>", value, "expected a table")
     for key in value:
         if allowed is not None and key not in allowed:
-            where = f"{field}.{key}" if field else str(key)
+            where = key_path(field, key)
             raise ScenarioError(where, value[key], f"unknown key (expected one of {list(allowed)})")
     return value
 

@@ -7,12 +7,13 @@ advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share b
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from scenarios.meshes import TetMesh
 from scenarios.model import Scenario
+from solvers.physics.contact import auto_penalty_stiffness
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices, snh_parameters
 
@@ -87,8 +88,24 @@ def active_terms(scenario: Scenario) -> tuple[str, ...]:
     return tuple(terms)
 
 
+def resolved(scenario: Scenario, L: float) -> Scenario:
+    """The scenario with its automatic settings made numbers for a body of size L [m]: an `auto` penalty
+    stiffness (None) becomes `auto_penalty_stiffness` for the fastest expected approach speed, the initial speed
+    |v| + |omega| L plus the speed of a fall through the initial clearance, sqrt(2 |g| clearance)."""
+    c = scenario.contact
+    if c.stiffness is not None:
+        return scenario
+    ini = scenario.initial
+    speed = (float(np.linalg.norm(ini.velocity)) + float(np.linalg.norm(ini.angular_velocity)) * L
+             + float(np.sqrt(2.0 * np.linalg.norm(scenario.gravity) * (ini.clearance or 0.0))))
+    k = auto_penalty_stiffness(scenario.material.youngs_modulus, scenario.material.density, speed, L)
+    return replace(scenario, contact=replace(c, stiffness=k))
+
+
 def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
-    """Assemble the static model of `scenario` on `mesh` (rest positions as given by the mesh)."""
+    """Assemble the static model of `scenario` on `mesh` (rest positions as given by the mesh); its scenario is
+    `resolved` (automatic settings made numbers)."""
+    scenario = resolved(scenario, float(mesh.bbox_diagonal()))
     X = np.ascontiguousarray(mesh.X, dtype=np.float64)
     tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
     Dm_inv, vol = shape_matrices(X, tets)

@@ -8,7 +8,7 @@ import numpy as np
 
 from scenarios.meshes import load_mesh
 from scenarios.model import MeshSpec, Scenario
-from solvers.full.solver import stats_summary
+from solvers.step_stats import stats_summary
 from solvers.model import State, build_model, initial_state
 from solvers.registry import get_solver
 from solvers.simulate import Diverged, simulate

@@ -1,7 +1,9 @@
 """The time loop shared by every solver: step a `State` through a scenario's duration, store frames.
 
-A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats have `wall_s`, `newton_iters`
-and `converged` (see `solvers.full.solver.StepStats`). The loop stops at the first non-finite state and raises
+A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats are a `StepStats`
+(`solvers.full.solver`). A step that fails (Newton not converged, or a non-finite state) is redone from the same
+start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the attempts'
+iterations and wall time and counts the retries. A step still non-finite after that ends the run: the loop raises
 `Diverged` carrying what was computed so far.
 """
 
@@ -13,6 +15,7 @@ import numpy as np
 from tqdm import tqdm
 
 from solvers.model import Model, State, initial_state
+from solvers.step_stats import StepStats
 from solvers.trajectory import Trajectory
 
 
@@ -22,6 +25,32 @@ class Stepper(Protocol):
     name: str
 
     def step(self, state_in: State, state_out: State, dt: float): ...
+
+
+#: Deepest halving of a failed step: dt / 2^MAX_RETRY_DEPTH.
+MAX_RETRY_DEPTH = 3
+
+
+def _finite(state: State) -> bool:
+    return bool(np.isfinite(state.x).all() and np.isfinite(state.v).all())
+
+
+def advance(solver: Stepper, state: State, dt: float, depth: int = 0) -> tuple[State, StepStats]:
+    """One step of dt [s] from `state`; on failure, two steps of dt/2 from the same start (recursively).
+
+    Returns the end state and one record: its `retries` counts the halvings done, its `newton_iters`,
+    `line_search_halvings`, `stalls` and `wall_s` sum every attempt, `converged` and `residual` are the last
+    sub-step's.
+    """
+    out = State(state.x, state.v, state.t)
+    st = solver.step(state, out, dt)
+    if (st.converged and _finite(out)) or depth >= MAX_RETRY_DEPTH:
+        return out, st
+    mid, first = advance(solver, state, dt / 2, depth + 1)
+    if not _finite(mid):
+        return mid, st.merged(first)
+    end, second = advance(solver, mid, dt / 2, depth + 1)
+    return end, st.merged(first, second)
 
 
 class Diverged(RuntimeError):
@@ -52,10 +81,9 @@ def simulate(model: Model, solver: Stepper, state0: State | None = None, progres
     bar = tqdm(range(1, ts.n_steps + 1), desc=f"{solver.name}:{model.scenario.name}", disable=not progress,
                leave=False, unit="step")
     for k in bar:
-        out = State(state.x, state.v, state.t)
-        stats.append(solver.step(state, out, ts.dt))
-        state = out
-        if not (np.isfinite(state.x).all() and np.isfinite(state.v).all()):
+        state, st = advance(solver, state, ts.dt)
+        stats.append(st)
+        if not _finite(state):
             raise Diverged(k, trajectory(), stats)
         if k % ts.frame_every == 0 or k == ts.n_steps:
             frames_t.append(state.t)

@@ -34,7 +34,7 @@ def test_kernels_match_numpy_reference(block):
     solver._lag_normal_pressure(state)
     solver.x.assign(x)
     solver.gradient_hessian(solver.x, h)
-    c, p = sc.contact, model.points
+    c, p = model.scenario.contact, model.points
     fn = pc.normal_pressure(state.x[p], state.v[p], model.plane_normal, 0.0, c.stiffness, c.damping)
     assert (fn > 0).any()
     mu, lam = model.mu_snh, model.lam_snh
@@ -117,11 +117,7 @@ def test_incline_sticks_and_creep_is_bounded_by_the_friction_law(block):
     c = model.scenario.contact
     fn = pc.normal_pressure(traj.x[-1][model.points], traj.v[-1][model.points], model.plane_normal, 0.0,
                             c.stiffness, 0.0)
-    load = model.mass.sum() * G * np.sin(t)
-    lo, hi = 0.0, 1.0
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if np.sum(model.area * np.minimum(c.friction_stiffness * mid, mu * fn)) < load else (lo, mid)
+    lo = pf.creep_speed(model.area, fn, mu, c.friction_stiffness, model.mass.sum() * G * np.sin(t))
     assert creep > 0.0
     assert creep == pytest.approx(lo, rel=0.05)
     assert lo < 1e-3  # sticking: creep well below a millimetre per second

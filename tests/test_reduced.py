@@ -18,6 +18,7 @@ from solvers.licrom.cubature import cubature_force_error, optimized_cubature, un
 from solvers.licrom.reduced import ReducedModel, ReducedSolver, simulate_reduced
 from solvers.model import build_model, initial_state, rotation_matrix
 from solvers.physics import contact as pc
+from solvers.physics import friction as pf
 from solvers.physics import material as pm
 from solvers.simulate import simulate
 
@@ -43,11 +44,7 @@ def law_creep_speed(model, x: np.ndarray, v: np.ndarray, theta_deg: float, mu: f
     c = model.scenario.contact
     fn = pc.normal_pressure(x[model.points], v[model.points], model.plane_normal, 0.0, c.stiffness, 0.0)
     load = model.mass.sum() * G * np.sin(np.radians(theta_deg))
-    lo, hi = 0.0, 1.0
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if np.sum(model.area * np.minimum(c.friction_stiffness * mid, mu * fn)) < load else (lo, mid)
-    return lo
+    return pf.creep_speed(model.area, fn, mu, c.friction_stiffness, load)
 
 
 # ----- kernels ----------------------------------------------------------------------------------------------
@@ -145,6 +142,21 @@ def test_affine_basis_sticks_within_the_friction_laws_creep(block):
     creep = law_creep_speed(model, traj.x[-1], traj.v[-1], theta, mu)
     assert creep < 1e-3  # the law itself predicts sticking (creep well below a millimetre per second)
     assert 0.0 < speed < 1.05 * creep
+
+
+def test_a_retried_reduced_step_keeps_the_latent_history(block):
+    model = build_model(incline(30.0, 0.2, duration=0.1), block)
+    solver = ReducedSolver(model, affine_basis(model.X))
+    step = solver.step
+
+    def flaky(state_in, state_out, dt):  # every full-size step fails once, its halves succeed
+        return replace(step(state_in, state_out, dt), converged=dt < 0.0099)
+
+    solver.step = flaky
+    traj, stats = simulate_reduced(model, solver)
+    assert [s.retries for s in stats] == [1] * 10
+    assert traj.t.size == 11 and len(solver.q_history) == 21  # t = 0 and every half step, failed attempts dropped
+    np.testing.assert_allclose(model.X + solver.reduced.decode(traj.q[-1]), traj.x[-1], atol=1e-12)
 
 
 # ----- cubature ------------------------------------------------------------------------------------------------

@@ -69,9 +69,9 @@ def test_gate_exits_non_zero_when_violated(tmp_path, suite_file):
     out = tmp_path / "out"
     run_suite(str(suite_file), out, variants=[], jobs=1, report=False)
     good = tmp_path / "good.toml"
-    good.write_text(f'[[gate]]\nsuite = "{suite_file}"\nvariant = "full/reference"\nmetric = "finite"\nequals = true\n')
+    good.write_text('[[gate]]\nsuite = "tiny"\nvariant = "full/reference"\nmetric = "finite"\nequals = true\n')
     bad = tmp_path / "bad.toml"
-    bad.write_text(f'[[gate]]\nsuite = "{suite_file}"\nvariant = "full/reference"\n'
+    bad.write_text('[[gate]]\nsuite = "tiny"\nvariant = "full/reference"\n'
                    'metric = "step_ms_median"\nmax = 0.0\n')
     assert main(["gate", str(out), "--gates", str(good)]) == 0
     assert main(["gate", str(out), "--gates", str(bad)]) == 1
@@ -157,3 +157,56 @@ def test_killed_run_resumes_without_recomputing(tmp_path, suite_file):
     assert subprocess.run(cmd, capture_output=True).returncode == 0
     assert all(p.stat().st_mtime_ns == t for p, t in finished.items())  # nothing finished was recomputed
     assert len(list((out / "runs").glob("*/stats.json"))) == 2 and len(pd.read_csv(out / "results.csv")) == 2
+
+
+LAWS_SUITE = SUITE.replace('name = "tiny"', 'name = "laws"') + """
+[[extra]]
+labels = { case = "touching" }
+tags = []
+overrides = { "initial.clearance" = 0.0, "plane.friction" = 0.4, tags = ["resting"] }
+"""
+
+
+def test_barrier_variant_compares_the_laws_and_a_stability_matrix_judges_every_case(tmp_path):
+    suite = tmp_path / "laws.toml"
+    suite.write_text(LAWS_SUITE.replace("tags = []\n", ""))
+    gates = tmp_path / "gates.toml"
+    gates.write_text(f"""
+[[gate]]
+suite = "laws"
+variant = "full/barrier"
+metric = "max_penetration_rel"
+max = 0.0
+
+[[gate]]
+suite = "laws"
+variant = "full/reference"
+tag = "resting"
+metric = "energy_ratio_max"
+max = 1.01
+""")
+    out = tmp_path / "out"
+    assert main(["run", "--suite", str(suite), "--solvers", "barrier", "--out", str(out), "--no-report"]) == 0
+    rows = pd.read_csv(out / "results.csv")
+    barrier = rows[rows["variant"] == "barrier"].set_index("scenario")
+    assert (rows[rows["variant"] == "reference"]["law"] == "penalty").all()
+    assert set(barrier.loc[["laws/mu0.2", "laws/mu0.6"], "status"]) == {"ok"}
+    assert (barrier.loc[["laws/mu0.2", "laws/mu0.6"], "max_penetration_rel"] == 0.0).all()
+    assert (barrier.loc[["laws/mu0.2", "laws/mu0.6"], "law"] == "barrier").all()
+    # the barrier law cannot start in contact: a failed row that says why, not a crash of the matrix
+    touching = barrier.loc["laws/touching"]
+    assert touching["status"] == "failed" and "not applicable" in touching["failure"]
+    assert "initial.clearance" in touching["failure"]
+    for column in ("not_converged", "line_search_stalls", "step_retries", "volume_ratio_final", "tags"):
+        assert column in rows
+    from bench.gates import check, load_gates
+    from bench.reporting import build_report
+
+    verdicts = check(rows, load_gates(gates), "laws")
+    tagged = [v for v in verdicts if v.gate.endswith("[resting]")]
+    assert [v.scenario for v in tagged] == ["laws/touching"]
+    assert sum(not v.passed for v in verdicts) == 1  # the barrier row that could not run
+    page = build_report(out, gates_file=gates).read_text(encoding="utf-8")
+    assert 'class="stability-matrix"' in page and "cases passed" in page
+    assert "fail: max_penetration_rel" in page
+    assert "Contact laws side by side" in page

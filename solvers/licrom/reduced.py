@@ -44,7 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve, eigh
 
-from solvers.full.solver import StepStats
+from solvers.full.solver import ARMIJO_SLACK
 from solvers.licrom import kernels as K
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
@@ -52,6 +52,7 @@ from solvers.physics import contact as pc
 from solvers.physics import friction as pf
 from solvers.physics.material import shape_gradients
 from solvers.simulate import simulate
+from solvers.step_stats import StepStats
 from solvers.trajectory import Trajectory
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
@@ -256,10 +257,12 @@ class ReducedSolver:
     # ----- state mapping ---------------------------------------------------------------------------------
     def init_state(self, state: State) -> ReducedState:
         """Project a full state to the subspace (mass-weighted least squares of x - X and of v), make it the
-        current latent state and restart `q_history` with it."""
+        current latent state and the last entry of `q_history` (entries at or after its time are dropped: a
+        retried step or a new run replaces them)."""
         rm = self.reduced
         self.latent = ReducedState(rm.project(state.x - self.model.X), rm.project(state.v), state.t)
-        self.q_history = [(state.t, self.latent.q.copy())]
+        kept = [(t, q) for t, q in self.q_history if t < state.t - 1e-12 * max(1.0, abs(state.t))]
+        self.q_history = kept + [(state.t, self.latent.q.copy())]
         self._x_out = state.x
         return self.latent
 
@@ -391,7 +394,7 @@ class ReducedSolver:
             alpha = self._max_feasible_step(q, dq)
             while True:
                 E_new = self.energy(q + alpha * dq, st)
-                if np.isfinite(E_new) and E_new <= E + self.armijo * alpha * g_dot + 1e-12 * abs(E):
+                if np.isfinite(E_new) and E_new <= E + self.armijo * alpha * g_dot + ARMIJO_SLACK * abs(E):
                     break
                 alpha *= 0.5
                 halvings += 1

@@ -14,6 +14,19 @@ from __future__ import annotations
 import numpy as np
 
 
+#: Penetration scale of the automatic penalty stiffness, as a fraction of the body size L.
+AUTO_LAYER = 1.0e-3
+
+
+def auto_penalty_stiffness(youngs_modulus: float, density: float, speed: float, L: float,
+                           layer: float = AUTO_LAYER) -> float:
+    """k_e = max(E, rho v^2) / (layer L) [Pa/m]: the contact layer is as stiff as a layer of the material (or, for
+    an impact faster than the material's wave speed, as the ram pressure rho v^2 needs) `layer L` thick, so a
+    contact pressure p penetrates p / k_e = layer L p / max(E, rho v^2), i.e. layer L times the strain it causes.
+    E [Pa], density [kg/m^3], speed v [m/s] the fastest expected approach, L [m] the body's size."""
+    return max(youngs_modulus, density * speed**2) / (layer * L)
+
+
 def signed_distance(x: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
     """phi(x) = n . x - d, shape (p,) [m]."""
     return x @ normal - offset

@@ -58,3 +58,27 @@ def friction_hessian(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
     H = np.where(slow[:, None, None], k_slow[:, None, None] * T,
                  k_fast[:, None, None] * (T[None] - np.einsum("pi,pj->pij", t, t)))
     return H * (fn > 0)[:, None, None]
+
+
+def creep_speed(area: np.ndarray, fn: np.ndarray, mu: float, kf: float, load: float) -> float:
+    """The law's steady slip speed s [m/s] of a body held by friction: sum_i A_i min(k_f s, mu f_n,i) = load.
+
+    area (p,) [m^2], fn (p,) [Pa] the contact points' normal pressures, load [N] the tangential force friction
+    must carry (e.g. M |g_t|). The left side is piecewise linear and increasing in s with breakpoints
+    eps_i = mu f_n,i / k_f, so s is exact. inf when even full Coulomb friction, mu sum A f_n, cannot carry the
+    load (the body slides); 0 for no load.
+    """
+    if load <= 0.0:
+        return 0.0
+    eps = mu * fn / kf
+    order = np.argsort(eps)
+    eps, a, cap = eps[order], area[order], (area * mu * fn)[order]
+    if cap.sum() <= load:
+        return float("inf")
+    # On [eps_(j-1), eps_j]: points below j are saturated (Coulomb), the rest viscous (k_f s).
+    saturated = np.concatenate([[0.0], np.cumsum(cap)])[:-1]
+    viscous_area = a.sum() - np.concatenate([[0.0], np.cumsum(a)])[:-1]
+    s = (load - saturated) / (kf * viscous_area)
+    lower = np.concatenate([[0.0], eps[:-1]])
+    ok = (s >= lower) & (s <= eps)
+    return float(s[np.argmax(ok)])
