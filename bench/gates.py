@@ -4,11 +4,13 @@ Format (`gates.toml` at the repository root):
 
     [[gate]]
     suite = "quick"            # which suite's results it applies to
-    variant = "full/reference" # `solver/variant` label of the rows (`*` for every row)
+    variant = "full/reference" # `solver/variant` label of the rows (`*` for every row), or a list of labels
     split = "test"             # optional: only rows of this split
     tag = "expect-stick"       # optional: only rows whose scenario has this tag
+    exclude_tag = "free"       # optional: not rows whose scenario has this tag
     metric = "pos_rmse_rel"
     max = 0.05                 # and/or `min = ...`; boolean metrics use `equals = true`
+    advisory = true            # optional: judged and shown in the report, but never fails `frictionbench gate`
 
 Each gate yields one verdict per matching row; a gate that matches no row fails (a missing run is a failure).
 """
@@ -35,6 +37,7 @@ class Verdict:
     value: object
     limit: str
     passed: bool
+    advisory: bool = False
 
 
 def load_gates(path: str | Path) -> list[dict]:
@@ -57,20 +60,25 @@ def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]
     labels = variant_labels(results)
     verdicts = []
     for i, gate in enumerate(g for g in gates if g.get("suite") == suite):
-        sel = results["variant"].notna() if gate.get("variant", "*") == "*" else labels == gate["variant"]
+        wanted = gate.get("variant", "*")
+        sel = (results["variant"].notna() if wanted == "*"
+               else labels.isin(wanted if isinstance(wanted, list) else [wanted]))
         if "split" in gate:
             sel &= results["split"] == gate["split"]
+        tags = (results["tags"] if "tags" in results else pd.Series("", index=results.index)).fillna("").astype(str)
         if "tag" in gate:
-            tags = results["tags"] if "tags" in results else pd.Series("", index=results.index)
-            sel &= tags.fillna("").astype(str).str.split().apply(lambda t: gate["tag"] in t)
+            sel &= tags.str.split().apply(lambda t: gate["tag"] in t)
+        if "exclude_tag" in gate:
+            sel &= ~tags.str.split().apply(lambda t: gate["exclude_tag"] in t)
         limit = " ".join(f"{k} {gate[k]}" for k in ("min", "max", "equals") if k in gate)
         name = gate.get("name", f"{gate.get('variant', '*')}:{gate['metric']}"
                                 + (f"[{gate['tag']}]" if "tag" in gate else ""))
         rows = results[sel]
+        advisory = bool(gate.get("advisory", False))
         if rows.empty:
-            verdicts.append(Verdict(name, "(none)", gate.get("variant", "*"), gate["metric"], None, limit, False))
+            verdicts.append(Verdict(name, "(none)", str(wanted), gate["metric"], None, limit, False, advisory))
         for _, row in rows.iterrows():
             value = row.get(gate["metric"])
             verdicts.append(Verdict(name, row["scenario"], labels[row.name], gate["metric"], value, limit,
-                                    _passes(value, gate)))
+                                    _passes(value, gate), advisory))
     return verdicts

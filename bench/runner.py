@@ -119,13 +119,14 @@ def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
 
 
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
-              executor: str = "process", report: bool = True) -> Path:
-    """Run the matrix of `suite_name` with `variants` into `out`; returns the results.csv path."""
+              executor: str = "process", report: bool = True, only: str | None = None) -> Path:
+    """Run the matrix of `suite_name` with `variants` into `out` (only the members matching the shell pattern
+    `only`, if given); returns the results.csv path."""
     from bench.training import prepare_variants
 
     out = Path(out)
     store = RunStore(out / "runs")
-    suite = load_suite(suite_name)
+    suite = load_suite(suite_name).only(only)
     t0 = time.perf_counter()
     refs = {m.scenario.name: Task(m.scenario, "full", {}) for m in suite.scenarios}
     remesh_refs = [Task(m.scenario, "full", {}, mesh_variant(m, v.remesh))
@@ -146,7 +147,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
-                                         "variants": [v.__dict__ for v in variants],
+                                         "variants": [v.__dict__ for v in variants], "only": only,
                                          "wall_s": time.perf_counter() - t0})
     if report:
         from bench.reporting import build_report

@@ -132,12 +132,20 @@ def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
     parts = []
     failed_runs = int((frame["status"].fillna("ok") != "ok").sum()) if "status" in frame else 0
     if gates:
-        verdicts = pd.DataFrame([_as_dict(g) for g in gates])
+        every = pd.DataFrame([_as_dict(g) for g in gates])
+        advisory = every["advisory"].fillna(False).astype(bool) if "advisory" in every else pd.Series(False, every.index)
+        verdicts = every[~advisory]
         n_pass = int(verdicts["passed"].astype(bool).sum())
         ok = n_pass == len(verdicts)
         parts.append(f'<p class="banner {"pass" if ok else "fail"}">Gates: {n_pass} of {len(verdicts)} passed'
                      f"{'' if ok else f', {len(verdicts) - n_pass} failed'}.</p>")
-        parts.append("<h3>Gate verdicts</h3>" + _table(verdicts, verdicts=["passed"]))
+        if advisory.any():
+            n_adv = int(every[advisory]["passed"].astype(bool).sum())
+            parts.append(_note(f"Advisory checks (judged, not enforced; see Stability): {n_adv} of "
+                               f"{int(advisory.sum())} passed."))
+        shown = verdicts if len(verdicts) <= 100 else verdicts[~verdicts["passed"].astype(bool)]
+        caption = "" if shown is verdicts else _note(f"{len(verdicts)} verdicts; the failed ones are listed.")
+        parts.append("<h3>Gate verdicts</h3>" + caption + _table(shown, verdicts=["passed"]))
     else:
         parts.append(_note("No gates were evaluated for these results."))
     parts.append(_note(f"{len(frame)} result rows, {failed_runs} failed runs."))
@@ -246,8 +254,8 @@ def _stability_matrix(gates: Sequence[object]) -> str:
             cls = "text pass" if v == "pass" else "text fail" if v.startswith("fail") else "text"
             tds.append(f'<td class="{cls}">{html.escape(v)}</td>')
         body.append("<tr>" + "".join(tds) + "</tr>")
-    return (_note("Cases against the gates (gates.toml) per solver variant and contact law: pass, or the metrics "
-                  "that failed.")
+    return (_note("Cases against the gates and advisory checks (gates.toml) per solver variant and contact law: "
+                  "pass, or the metrics that failed.")
             + f'<div class="scroll"><table class="stability-matrix">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
             + "\n".join(body) + "\n</tbody>\n</table></div>")
 

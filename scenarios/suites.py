@@ -42,12 +42,13 @@ Every member is validated by `scenarios.load.scenario_from_dict`; errors name th
 
 from __future__ import annotations
 
+import fnmatch
 import itertools
 import numbers
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -79,6 +80,16 @@ class Suite:
     name: str
     description: str
     scenarios: tuple[SuiteMember, ...]
+
+    def only(self, pattern: str | None) -> "Suite":
+        """The members whose names match a shell pattern (`fnmatch`, e.g. `paper/cheese_*`); None keeps all.
+        Raises ScenarioError when nothing matches."""
+        if pattern is None:
+            return self
+        kept = tuple(m for m in self.scenarios if fnmatch.fnmatchcase(m.scenario.name, pattern))
+        if not kept:
+            raise ScenarioError("--only", pattern, f"matches no member of suite {self.name}")
+        return replace(self, scenarios=kept)
 
     @property
     def train(self) -> tuple[SuiteMember, ...]:

@@ -14,7 +14,7 @@ from solvers.model import Model
 
 
 def setup_full(model: Model, device: str = "cpu", tol: float = 1e-5, linear: str = "auto",
-               max_iter: int = 50) -> FullSpaceSolver:
+               max_iter: int = 200) -> FullSpaceSolver:
     """The full-space Newton solver (the reference)."""
     return FullSpaceSolver(model, device=device, settings=NewtonSettings(tol=tol, linear=linear, max_iter=max_iter))
 

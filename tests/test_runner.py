@@ -210,3 +210,12 @@ max = 1.01
     assert 'class="stability-matrix"' in page and "cases passed" in page
     assert "fail: max_penetration_rel" in page
     assert "Contact laws side by side" in page
+
+
+def test_only_runs_the_matching_members(tmp_path, suite_file):
+    out = tmp_path / "out"
+    assert main(["run", "--suite", str(suite_file), "--solvers", "full", "--only", "tiny/*0.2", "--out", str(out),
+                 "--no-report"]) == 0
+    assert set(pd.read_csv(out / "results.csv")["scenario"]) == {"tiny/mu0.2"}
+    assert main(["run", "--suite", str(suite_file), "--solvers", "full", "--only", "nothing*", "--out", str(out),
+                 "--no-report"]) == 2
