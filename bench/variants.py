@@ -29,12 +29,15 @@ VARIANTS: dict[str, list[Variant]] = {
                    Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)],
     # the barrier contact law (same friction potential) beside the penalty law of the reference
     "barrier": [Variant("full", {}, label="barrier", overrides={"contact.law": "barrier"})],
-    # hard suite: every reduced solver family under both contact laws (no remeshing or accuracy sweeps)
+    # hard suite: every reduced solver family and LiCROM's variants, LiCROM+affine under both contact laws (no
+    # remeshing or accuracy sweeps: those are about accuracy, and remeshing doubles the references)
     "hard": [Variant("full", {}, label="barrier", overrides={"contact.law": "barrier"}),
              Variant("licrom", LICROM, label="r20"),
              Variant("licrom", LICROM_AFFINE, label="affine-r24"),
              Variant("licrom", LICROM_AFFINE, label="affine-r24-barrier", model="affine-r24",
                      overrides={"contact.law": "barrier"}),
+             Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60"),
+             Variant("licrom", LICROM_AFFINE | {"scheme": "projected_gradient"}, label="affine-r24-pg"),
              Variant("pod", {"r": 20}, label="r20"),
              Variant("affine", {}, label="affine12")],
 }

@@ -243,6 +243,7 @@ def _stability_matrix(gates: Sequence[object]) -> str:
     cells = verdicts.groupby(["scenario", "variant"])["passed"].all().map({True: "pass", False: "fail"})
     cells = cells.where(cells == "pass", "fail: " + failed.reindex(cells.index).fillna(""))
     matrix = cells.unstack("variant").fillna("")
+    matrix = matrix[sorted(matrix.columns, key=lambda c: (not str(c).startswith("full/"), str(c)))]  # full first
     counts = (matrix == "pass").sum().astype(str) + " / " + (matrix != "").sum().astype(str)
     matrix = pd.concat([matrix, counts.to_frame("cases passed").T]).reset_index(names="scenario")
     head = "".join(f"<th>{html.escape(str(c))}</th>" for c in matrix.columns)
