@@ -106,8 +106,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
     from bench.runner import run_suite
 
-    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device, jobs=args.jobs,
-                    executor=args.executor, report=not args.no_report, only=args.only)
+    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
+                    jobs=args.jobs, executor=args.executor, report=not args.no_report, only=args.only)
     print(f"results: {csv}")
     if not args.no_report:
         print(f"report:  {Path(args.out) / 'report.html'}")

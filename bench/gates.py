@@ -58,6 +58,8 @@ def _passes(value: object, gate: dict) -> bool:
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:
     """Verdicts of every gate of `suite` on the results table."""
     labels = variant_labels(results)
+    tags = (results["tags"] if "tags" in results else pd.Series("", index=results.index)).fillna("").astype(str)
+    tag_sets = tags.str.split().apply(set)
     verdicts = []
     for i, gate in enumerate(g for g in gates if g.get("suite") == suite):
         wanted = gate.get("variant", "*")
@@ -65,11 +67,10 @@ def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]
                else labels.isin(wanted if isinstance(wanted, list) else [wanted]))
         if "split" in gate:
             sel &= results["split"] == gate["split"]
-        tags = (results["tags"] if "tags" in results else pd.Series("", index=results.index)).fillna("").astype(str)
         if "tag" in gate:
-            sel &= tags.str.split().apply(lambda t: gate["tag"] in t)
+            sel &= tag_sets.apply(lambda t: gate["tag"] in t)
         if "exclude_tag" in gate:
-            sel &= ~tags.str.split().apply(lambda t: gate["exclude_tag"] in t)
+            sel &= ~tag_sets.apply(lambda t: gate["exclude_tag"] in t)
         limit = " ".join(f"{k} {gate[k]}" for k in ("min", "max", "equals") if k in gate)
         name = gate.get("name", f"{gate.get('variant', '*')}:{gate['metric']}"
                                 + (f"[{gate['tag']}]" if "tag" in gate else ""))

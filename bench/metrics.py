@@ -16,7 +16,7 @@ import numpy as np
 
 from scenarios.meshes import TetMesh
 from scenarios.model import Contact, Material, Plane
-from solvers.physics.contact import barrier_pressure, normal_pressure
+from solvers.physics.contact import lagged_pressure
 from solvers.physics.friction import creep_speed
 from solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
 from solvers.trajectory import Trajectory
@@ -309,10 +309,8 @@ def creep_speed_law(traj: Trajectory, plane: Plane, contact: Contact, material: 
     area = mesh.surface_vertex_areas()
     pts = np.flatnonzero(area > 0.0)
     x = traj.x[_tail(traj.t, tail_fraction)][:, pts]
-    if contact.law == "barrier":
-        fn = barrier_pressure(x, n, d, contact.barrier_stiffness, contact.barrier_distance)
-    else:
-        fn = normal_pressure(x, np.zeros_like(x), n, d, contact.stiffness, 0.0)
+    fn = lagged_pressure(contact.law, x, np.zeros_like(x), n, d, contact.stiffness, 0.0, contact.barrier_stiffness,
+                         contact.barrier_distance)
     weight = lumped_masses(traj.X, traj.tets, material.density).sum()
     g_t = float(np.linalg.norm(_tangential(np.asarray(gravity, dtype=float), n)))
     return creep_speed(area[pts], fn.mean(axis=0), plane.friction, contact.friction_stiffness, weight * g_t)

@@ -33,8 +33,8 @@ optional and defaults to the dataclass default unless said otherwise below):
     No ground at all: write `plane = false` at the top level. Omitting the plane entirely gives the model's
     default plane (horizontal through the origin, mu = 0.5), so a scene without ground always says so.
 
-    [contact]     law = "penalty" | "barrier", stiffness > 0 or "auto" (default; see Contact), damping >= 0, friction_stiffness > 0,
-                  barrier_distance > 0, barrier_stiffness > 0
+    [contact]     law = "penalty" | "barrier", stiffness > 0 or "auto" (default; see Contact), damping >= 0,
+                  friction_stiffness > 0, barrier_distance > 0, barrier_stiffness > 0
     [initial]     clearance >= 0 [m], rotation [deg], translation [m], velocity [m/s],
                   angular_velocity [rad/s], squash (per-axis scale, components
                   nonzero, magnitude in [1e-3, 1e3]; a negative component mirrors the body: every tet starts inverted)

@@ -1,7 +1,7 @@
 """The time loop shared by every solver: step a `State` through a scenario's duration, store frames.
 
 A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats are a `StepStats`
-(`solvers.full.solver`). A step that fails (Newton not converged, or a non-finite state) is redone from the same
+(`solvers.step_stats`). A step that fails (Newton not converged, or a non-finite state) is redone from the same
 start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the attempts'
 iterations and wall time and counts the retries. A step still non-finite after that ends the run: the loop raises
 `Diverged` carrying what was computed so far.

@@ -21,16 +21,16 @@ import warp.optim.linear as wpl
 import warp.sparse as wps
 
 from solvers.full import kernels as K
+from solvers.model import Model, State
+from solvers.physics.contact import lagged_pressure
+from solvers.step_stats import StepStats
+from solvers.warp_runtime import init_warp
 
 #: Round-off allowance of the Armijo test, relative to |E|: a trial point may exceed the sufficient-decrease line by
 #: this much. Larger (1e-12 was tried) lets Newton cycle between the kinks of the penalty and friction laws (their
 #: second derivatives jump) with the energy flat to 1e-12 but the iterate never settling; 1e-14 is a few ulps of the
 #: summed energy.
 ARMIJO_SLACK = 1e-14
-from solvers.model import Model, State
-from solvers.physics.contact import barrier_pressure, normal_pressure
-from solvers.step_stats import StepStats
-from solvers.warp_runtime import init_warp
 
 
 @dataclass(frozen=True)
@@ -217,12 +217,9 @@ class FullSpaceSolver:
     def _lag_normal_pressure(self, state: State) -> None:
         """Normal pressure at the start of the step (lagged friction, IPC), per contact point [Pa]."""
         m, c = self.model, self.model.scenario.contact
-        xp, vp = state.x[m.points], state.v[m.points]
-        if self.law == "penalty":
-            kd = c.damping if m.has("damping") else 0.0
-            fn = normal_pressure(xp, vp, m.plane_normal, m.plane_offset, c.stiffness, kd)
-        else:
-            fn = barrier_pressure(xp, m.plane_normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance)
+        kd = c.damping if m.has("damping") else 0.0
+        fn = lagged_pressure(self.law, state.x[m.points], state.v[m.points], m.plane_normal, m.plane_offset,
+                             c.stiffness, kd, c.barrier_stiffness, c.barrier_distance)
         self.fn.assign(np.ascontiguousarray(fn))
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:

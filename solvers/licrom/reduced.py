@@ -349,13 +349,10 @@ class ReducedSolver:
         fn = None
         if m.has("friction"):
             c = m.scenario.contact
-            if self.law == "penalty":
-                v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
-                kd = c.damping if m.has("damping") else 0.0
-                fn = pc.normal_pressure(x_prev, v, m.plane_normal, m.plane_offset, c.stiffness, kd)
-            else:
-                fn = pc.barrier_pressure(x_prev, m.plane_normal, m.plane_offset, c.barrier_stiffness,
-                                         c.barrier_distance)
+            v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
+            kd = c.damping if m.has("damping") else 0.0
+            fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness, kd,
+                                    c.barrier_stiffness, c.barrier_distance)
         return _Step(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:

@@ -98,3 +98,13 @@ def barrier_d2(d: np.ndarray, dhat: float) -> np.ndarray:
 def barrier_pressure(x, normal, offset, kappa, dhat) -> np.ndarray:
     """Barrier normal force per unit area -kappa b'(phi) >= 0, (p,) [Pa]."""
     return -kappa * barrier_d1(signed_distance(x, normal, offset), dhat)
+
+
+def lagged_pressure(law: str, x, v, normal, offset, ke, kd, kappa, dhat) -> np.ndarray:
+    """Normal pressure of the scene's contact law at points x (p, 3) moving at v (p, 3), (p,) [Pa]: `penalty`
+    (`normal_pressure` with k_e, k_d) or `barrier` (`barrier_pressure` with kappa, dhat). Friction lags it from
+    the start of the step; the creep metric evaluates it on stored frames."""
+    if law == "penalty":
+        return normal_pressure(x, v, normal, offset, ke, kd)
+    return barrier_pressure(x, normal, offset, kappa, dhat)
+
