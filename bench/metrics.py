@@ -190,33 +190,39 @@ def vertex_velocities(traj: Trajectory) -> np.ndarray:
 
 
 def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
-          plane_offset: float | None = None, masses: np.ndarray | None = None,
-          tail_fraction: float = 0.1, speed_tol_rel: float = 1e-3,
+          plane_offset: float | None = None, masses: np.ndarray | None = None, creep_speed: float | None = None,
+          tail_fraction: float = 0.1, speed_tol_rel: float = 1e-3, creep_tol: float = 2.0,
           contact_tol_rel: float = 1e-2) -> tuple[bool, float]:
     """Is the body at rest on the plane at the end? Returns (verdict, measured speed [m/s]).
 
     speed = mean over the tail frames k of |P v_c,k|, the centre of mass's velocity along the plane
     (P = I - n n^T, v_c = sum_i m_i v_i / sum_i m_i, v from `vertex_velocities`). The tail is the frames with
     t >= t_end - tail_fraction (t_end - t_0), at least the last two. The body sticks when
-    speed < speed_tol_rel * L [m/s] and, if plane_offset d is given, it touches the plane at the last frame:
-    min_i (n . x_i - d) <= contact_tol_rel * L. L defaults to the rest mesh's bounding-box diagonal.
+    speed < max(speed_tol_rel * L, creep_tol * creep_speed) [m/s] and, if plane_offset d is given, it touches the
+    plane at the last frame: min_i (n . x_i - d) <= contact_tol_rel * L. L defaults to the rest mesh's
+    bounding-box diagonal. creep_speed [m/s] is the friction law's creep speed (`creep_speed_law`), used where
+    finite: a regularised law holds a body by letting it creep at that speed, which can exceed 1e-3 L/s.
     """
     n, d = _unit_plane(plane_normal, 0.0 if plane_offset is None else plane_offset)
     L = bbox_diagonal(traj.X) if L is None else L
     tail = _tail(traj.t, tail_fraction)
     v_c = center_of_mass(vertex_velocities(traj)[tail], masses)
     speed = float(np.mean(np.linalg.norm(_tangential(v_c, n), axis=-1)))
-    at_rest = speed < speed_tol_rel * L
+    tol = speed_tol_rel * L
+    if creep_speed is not None and np.isfinite(creep_speed):
+        tol = max(tol, creep_tol * creep_speed)
+    at_rest = speed < tol
     if plane_offset is not None:
         at_rest = at_rest and float(np.min(traj.x[-1] @ n - d)) <= contact_tol_rel * L
     return bool(at_rest), speed
 
 
 def stick_agree(ref: Trajectory, traj: Trajectory, plane_normal: ArrayLike3, *,
-                plane_offset: float | None = None, masses: np.ndarray | None = None) -> bool:
-    """stick(traj) == stick(ref), both judged with the reference's L (see `stick`)."""
+                plane_offset: float | None = None, masses: np.ndarray | None = None,
+                creep_speed: float | None = None) -> bool:
+    """stick(traj) == stick(ref), both judged with the reference's L and creep speed (see `stick`)."""
     L = bbox_diagonal(ref.X)
-    kw = {"plane_offset": plane_offset, "masses": masses}
+    kw = {"plane_offset": plane_offset, "masses": masses, "creep_speed": creep_speed}
     return stick(traj, plane_normal, L, **kw)[0] == stick(ref, plane_normal, L, **kw)[0]
 
 
@@ -421,9 +427,12 @@ def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, ma
     if plane is not None:
         L = bbox_diagonal(ref.X)
         row["slide_err_rel"] = slide_err_rel(ref, traj, plane.normal, masses)
-        row["stick"], row["end_speed"] = stick(traj, plane.normal, L, plane_offset=plane.offset, masses=masses)
-        row["stick_ref"], row["end_speed_ref"] = stick(ref, plane.normal, L, plane_offset=plane.offset,
-                                                       masses=masses)
+        # the reference's creep speed judges both runs (a body the law holds creeps at it)
+        creep = (creep_speed_law(ref, plane, contact, material, gravity)
+                 if contact is not None and material is not None and plane.friction > 0 and finite(ref) else None)
+        kw = {"plane_offset": plane.offset, "masses": masses, "creep_speed": creep}
+        row["stick"], row["end_speed"] = stick(traj, plane.normal, L, **kw)
+        row["stick_ref"], row["end_speed_ref"] = stick(ref, plane.normal, L, **kw)
         row["stick_agree"] = row["stick"] == row["stick_ref"]
     if basis is not None:
         row["proj_rmse_rel"] = proj_rmse_rel(ref, basis)

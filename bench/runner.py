@@ -183,7 +183,7 @@ def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) 
 def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Variant], store: RunStore) -> list[dict]:
     """One results row per (member, variant) plus one per reference: identity, metrics, timings."""
     rows = []
-    for m in suite.scenarios:
+    for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
         ref_task = refs[sc.name]
         ref, ref_stats = store.load(ref_task.key)
@@ -218,7 +218,23 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                           "dt": task.scenario.time.dt,
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
             rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, task.scenario, stats))
-    return rows
+    return with_remesh_ratio(rows)
+
+
+def with_remesh_ratio(rows: list[dict]) -> list[dict]:
+    """Rows with `remesh_ratio` on each row of a model run on another mesh than its training mesh: its
+    pos_rmse_rel / that of the same model on the same scenario on the training mesh (1 = remeshing costs nothing;
+    empty where either run failed)."""
+    on_train = {(r["scenario"], r["solver"], r["variant"]): r.get("pos_rmse_rel") for r in rows
+                if not r.get("remesh") and r.get("status") == "ok"}
+    out = []
+    for r in rows:
+        if r.get("remesh") and r.get("train_mesh"):
+            base, err = on_train.get((r["scenario"], r["solver"], r.get("model"))), r.get("pos_rmse_rel")
+            ratio = err / base if base and err is not None and r.get("status") == "ok" else None
+            r = r | {"remesh_ratio": ratio}
+        out.append(r)
+    return out
 
 
 def _timing(stats: dict, ref_stats: dict) -> dict:

@@ -105,6 +105,22 @@ def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_f
     assert (pod["train_mesh"] == "block/coarse").all()
 
 
+def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_training_mesh():
+    from bench.runner import with_remesh_ratio
+
+    def row(scenario, variant, err, remesh="", model=None, status="ok"):
+        return {"scenario": scenario, "solver": "licrom", "variant": variant, "model": model or variant,
+                "remesh": remesh, "train_mesh": "cheese/medium", "status": status, "pos_rmse_rel": err}
+
+    rows = with_remesh_ratio([row("a", "m", 0.02), row("b", "m", 0.04), row("a", "m-re", 0.03, "alt", "m"),
+                              row("b", "m-re", 0.02, "alt", "m"), row("c", "m", None, status="failed"),
+                              row("c", "m-re", 0.01, "alt", "m")])
+    ratios = {(r["scenario"], r["variant"]): r.get("remesh_ratio") for r in rows}
+    assert ratios[("a", "m-re")] == pytest.approx(1.5) and ratios[("b", "m-re")] == pytest.approx(0.5)
+    assert ratios[("c", "m-re")] is None  # its training-mesh run failed: no ratio, and the gate fails
+    assert ratios[("a", "m")] is None  # rows on the training mesh carry none
+
+
 def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tmp_path, suite_file):
     from bench.runner import Variant
 
@@ -219,3 +235,16 @@ def test_only_runs_the_matching_members(tmp_path, suite_file):
     assert set(pd.read_csv(out / "results.csv")["scenario"]) == {"tiny/mu0.2"}
     assert main(["run", "--suite", str(suite_file), "--solvers", "full", "--only", "nothing*", "--out", str(out),
                  "--no-report"]) == 2
+
+
+@pytest.mark.parametrize("suite", ["quick", "paper", "hard"])
+def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
+    """A gate on a label no default run produces would only ever fail as 'matched no row' after a long run."""
+    from bench.cli import parse_variants
+    from bench.gates import load_gates
+
+    labels = {"full/reference"} | {f"{v.solver}/{v.label or v.solver}" for v in parse_variants(None, suite=suite)}
+    for gate in load_gates(Path(__file__).parents[1] / "gates.toml"):
+        if gate["suite"] == suite and gate["variant"] != "*":
+            named = gate["variant"] if isinstance(gate["variant"], list) else [gate["variant"]]
+            assert set(named) <= labels, (gate, sorted(labels))
