@@ -191,7 +191,7 @@ def vertex_velocities(traj: Trajectory) -> np.ndarray:
 
 def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
           plane_offset: float | None = None, masses: np.ndarray | None = None, creep_speed: float | None = None,
-          tail_fraction: float = 0.1, speed_tol_rel: float = 1e-3, creep_tol: float = 2.0,
+          tail_fraction: float = 0.1, speed_tol_rel: float = 1e-3, creep_tol: float = 5.0,
           contact_tol_rel: float = 1e-2) -> tuple[bool, float]:
     """Is the body at rest on the plane at the end? Returns (verdict, measured speed [m/s]).
 
@@ -201,7 +201,9 @@ def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
     speed < max(speed_tol_rel * L, creep_tol * creep_speed) [m/s] and, if plane_offset d is given, it touches the
     plane at the last frame: min_i (n . x_i - d) <= contact_tol_rel * L. L defaults to the rest mesh's
     bounding-box diagonal. creep_speed [m/s] is the friction law's creep speed (`creep_speed_law`), used where
-    finite: a regularised law holds a body by letting it creep at that speed, which can exceed 1e-3 L/s.
+    finite: a regularised law holds a body by letting it creep at that speed, which can exceed 1e-3 L/s, and a
+    body still settling at the end of a run is a small multiple of it (measured up to 2.1x in the quick suite),
+    while bodies the law cannot hold move at 0.1-10 m/s on the shipped planes (hundreds of times more).
     """
     n, d = _unit_plane(plane_normal, 0.0 if plane_offset is None else plane_offset)
     L = bbox_diagonal(traj.X) if L is None else L
