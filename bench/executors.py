@@ -30,8 +30,12 @@ class ProcessExecutor:
     def __enter__(self) -> "ProcessExecutor":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.pool.shutdown(wait=True, cancel_futures=True)
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is not None:  # interrupted (Ctrl-C, SIGTERM, an error): stop the runs in flight now, not
+            # when they end; what is stored stays and a rerun resumes (Python >= 3.14 has terminate_workers)
+            for process in list((getattr(self.pool, "_processes", None) or {}).values()):
+                process.terminate()
+        self.pool.shutdown(wait=exc_type is None, cancel_futures=True)
 
 
 class DaskExecutor:

@@ -175,6 +175,40 @@ def test_killed_run_resumes_without_recomputing(tmp_path, suite_file):
     assert len(list((out / "runs").glob("*/stats.json"))) == 2 and len(pd.read_csv(out / "results.csv")) == 2
 
 
+def test_sigterm_stops_the_workers_with_the_run(tmp_path):
+    """A run stopped with SIGTERM exits at once and takes its pool workers with it (a worker left behind would
+    compute its long run to the end); the rerun still resumes."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import psutil
+
+    suite = tmp_path / "long.toml"
+    suite.write_text(SUITE.replace("duration = 0.05", "duration = 60.0"))  # minutes per run on this mesh
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", str(suite), "--solvers", "full", "--jobs", "2",
+           "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        parent, deadline = psutil.Process(proc.pid), time.time() + 120
+        workers: list = []
+        while len(workers) < 2 and time.time() < deadline:  # the pool's workers (the resource tracker besides)
+            workers = [c for c in parent.children() if "spawn_main" in " ".join(c.cmdline())]
+            time.sleep(0.2)
+        assert len(workers) == 2
+        time.sleep(3.0)  # the workers are inside their runs
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+        gone, alive = psutil.wait_procs(workers, timeout=10)
+        assert not alive, alive
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert not list((out / "runs").glob("*/stats.json"))  # nothing half-done was stored
+
+
 LAWS_SUITE = SUITE.replace('name = "tiny"', 'name = "laws"') + """
 [[extra]]
 labels = { case = "touching" }
