@@ -58,7 +58,8 @@ def _passes(value: object, gate: dict) -> bool:
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:
     """Verdicts of every gate of `suite` on the results table."""
     labels = variant_labels(results)
-    tags = (results["tags"] if "tags" in results else pd.Series("", index=results.index)).fillna("").astype(str)
+    tags = (results["tags"] if "tags" in results else pd.Series("", index=results.index)).astype(object).fillna("")
+    tags = tags.astype(str)
     tag_sets = tags.str.split().apply(set)
     verdicts = []
     for i, gate in enumerate(g for g in gates if g.get("suite") == suite):

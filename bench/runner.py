@@ -189,7 +189,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
         ref, ref_stats = store.load(ref_task.key)
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
-        rows.append(base | {"solver": "full", "variant": "reference", "run": ref_task.key}
+        rows.append(base | {"solver": "full", "variant": "reference", "run": ref_task.key, "dt": sc.time.dt}
                     | _timing(ref_stats, ref_stats) | _metrics(ref, ref, sc, ref_stats))
         for v, params in member_variants(resolved, variants, m):
             label = v.label or v.solver
@@ -218,7 +218,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                           "dt": task.scenario.time.dt,
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
             rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, task.scenario, stats))
-    return with_remesh_ratio(rows)
+    return with_ref_dt_change(with_remesh_ratio(rows))
 
 
 def with_remesh_ratio(rows: list[dict]) -> list[dict]:
@@ -235,6 +235,23 @@ def with_remesh_ratio(rows: list[dict]) -> list[dict]:
             r = r | {"remesh_ratio": ratio}
         out.append(r)
     return out
+
+
+def with_ref_dt_change(rows: list[dict]) -> list[dict]:
+    """Rows with `ref_dt_change` on every row of a scenario that has a full-space run on the reference's mesh at a
+    smaller time step than the reference's: that run's pos_rmse_rel against the reference (the smallest such dt
+    where there are several). It is how far the reference moves when its time step is refined, so a lower bound of
+    its own time-discretisation error (backward Euler converges at first order: refining dt towards 0 moves it
+    about as much again); a reduced model's error below it is within the reference's own accuracy."""
+    ref_dt = {r["scenario"]: r.get("dt") for r in rows if r.get("variant") == "reference"}
+    finer: dict[str, tuple[float, float]] = {}
+    for r in rows:
+        dt, base = r.get("dt"), ref_dt.get(r["scenario"])
+        if (r.get("solver") == "full" and r.get("variant") != "reference" and not r.get("remesh")
+                and r.get("status") == "ok" and dt is not None and base is not None and dt < base
+                and (r["scenario"] not in finer or dt < finer[r["scenario"]][0])):
+            finer[r["scenario"]] = (dt, r.get("pos_rmse_rel"))
+    return [r | {"ref_dt_change": finer[r["scenario"]][1]} if r["scenario"] in finer else r for r in rows]
 
 
 def _timing(stats: dict, ref_stats: dict) -> dict:

@@ -184,7 +184,8 @@ def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     assert "http://" not in page and "https://" not in page
     checker = check_html(page)
     assert all(ref.startswith(("data:image/png;base64,", "#")) for ref in checker.refs)
-    assert checker.headings == ["Summary", "Accuracy versus time", "Error over time", "Stick/slip agreement",
+    assert checker.headings == ["Summary", "Accuracy versus time", "Error over time",
+                                "Reference time-step convergence", "Stick/slip agreement",
                                 "Remeshing", "Stability", "Renders: full versus reduced", "Notes", "Provenance"]
     images = [r for r in checker.refs if r.startswith("data:image/png")]
     assert len(images) == 2 + 3 * 3  # accuracy plot, one error plot, 3 key frames x (full + 2 reduced)
@@ -193,6 +194,22 @@ def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     assert 'class="fail"' in page and 'class="pass"' in page
     assert "block/coarse_alt" in page  # remeshing table
     assert "matplotlib" in page  # which renderer made the pictures
+
+
+def test_time_convergence_section_sets_the_references_time_error_beside_the_best_reduced_error(tmp_path):
+    rows = [{"scenario": s, "split": "test", "solver": solver, "variant": variant, "dt": dt, "pos_rmse_rel": err,
+             "status": "ok", "ref_dt_change": change}
+            for s, change in [("p4", 0.284), ("p5", 0.0123)]
+            for solver, variant, dt, err in [("full", "reference", 0.01, 0.0), ("full", "dt-half", 0.005, change),
+                                             ("full", "other-mesh", 0.01, 0.00217), ("licrom", "r20", 0.01, 0.241),
+                                             ("pod", "r20", 0.01, 0.326)]]
+    page = write_report_html(pd.DataFrame(rows), tmp_path).read_text(encoding="utf-8")
+    section = page[page.index('id="time-convergence"'):page.index('id="stick-slip"')]
+    assert "best_reduced_pos_rmse_rel" in section and section.count("<tr>") == 3  # header + 2 scenarios
+    assert "0.284" in section and "0.241" in section and "0.0123" in section
+    assert "0.326" not in section and "0.00217" not in section  # the best reduced error only, no full-space rows
+    bare = write_report_html(pd.DataFrame(rows).drop(columns="ref_dt_change"), tmp_path).read_text(encoding="utf-8")
+    assert "No full-space run at a smaller time step" in bare
 
 
 def test_html_report_from_results_alone(tmp_path: Path, runs) -> None:

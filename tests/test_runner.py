@@ -121,15 +121,39 @@ def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_trai
     assert ratios[("a", "m")] is None  # rows on the training mesh carry none
 
 
+def test_ref_dt_change_is_the_finest_full_space_run_on_the_reference_mesh():
+    from bench.runner import with_ref_dt_change
+
+    def row(scenario, variant, dt, err, solver="full", remesh="", status="ok"):
+        return {"scenario": scenario, "solver": solver, "variant": variant, "dt": dt, "pos_rmse_rel": err,
+                "remesh": remesh, "status": status}
+
+    rows = with_ref_dt_change([
+        row("a", "reference", 0.01, 0.0), row("a", "dt-half", 0.005, 0.2), row("a", "dt-quarter", 0.0025, 0.3),
+        row("a", "dt2x", 0.02, 0.4), row("a", "barrier", 0.01, 0.1), row("a", "other-mesh", 0.005, 0.01, remesh="alt"),
+        row("a", "r20", 0.005, 0.05, solver="licrom"),
+        row("b", "reference", 0.01, 0.0), row("b", "dt-half", 0.005, None, status="failed"), row("b", "r20", 0.01, 0.1),
+        row("c", "reference", 0.01, 0.0)])
+    change = {(r["scenario"], r["variant"]): r.get("ref_dt_change") for r in rows}
+    assert {v for (s, _), v in change.items() if s == "a"} == {0.3}  # every row of a, from its finest dt
+    assert all(v is None for (s, _), v in change.items() if s != "a")  # failed or absent: none
+
+
 def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tmp_path, suite_file):
     from bench.runner import Variant
+    from bench.variants import DT_HALF
 
-    variants = [Variant("full", {}, label="dt2x", dt_scale=2.0),
+    variants = [Variant("full", {}, label="dt2x", dt_scale=2.0), DT_HALF,
                 Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)]
     results = pd.read_csv(run_suite(str(suite_file), tmp_path / "out", variants=variants, jobs=1, report=False))
     dt2 = results[results["variant"] == "dt2x"]
     assert (dt2["dt"] == 0.02).all() and (dt2["frames_compared"] == 3).all()  # t = 0, 0.02, 0.04
     assert (dt2["pos_rmse_rel"] > 0).all() and (dt2["pos_rmse_rel"] < 0.05).all()
+    half = results[results["variant"] == "dt-half"].set_index("scenario")
+    assert (half["dt"] == 0.005).all() and (half["frames_compared"] == 6).all()  # the reference's frames
+    assert (half["pos_rmse_rel"] > 0).all() and (half["pos_rmse_rel"] < 0.05).all()
+    for scenario, rows in results.groupby("scenario"):
+        assert (rows["ref_dt_change"] == half.loc[scenario, "pos_rmse_rel"]).all()
     other = results[results["variant"] == "other-mesh"]
     assert (other["mesh"] == "block/coarse_alt").all()
     assert (other["pos_rmse_rel"] > 0).all() and (other["pos_rmse_rel"] < 0.02).all()
