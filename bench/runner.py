@@ -240,9 +240,10 @@ def with_remesh_ratio(rows: list[dict]) -> list[dict]:
 def with_ref_dt_change(rows: list[dict]) -> list[dict]:
     """Rows with `ref_dt_change` on every row of a scenario that has a full-space run on the reference's mesh at a
     smaller time step than the reference's: that run's pos_rmse_rel against the reference (the smallest such dt
-    where there are several). It is how far the reference moves when its time step is refined, so a lower bound of
-    its own time-discretisation error (backward Euler converges at first order: refining dt towards 0 moves it
-    about as much again); a reduced model's error below it is within the reference's own accuracy."""
+    where there are several). It is how far the reference moves when its time step is refined: where the error
+    shrinks with dt the reference's own time-discretisation error is at least half of it, and about twice it once
+    backward Euler is in its first-order range; a reduced model's error of that order is within the reference's
+    own accuracy."""
     ref_dt = {r["scenario"]: r.get("dt") for r in rows if r.get("variant") == "reference"}
     finer: dict[str, tuple[float, float]] = {}
     for r in rows:

@@ -187,9 +187,10 @@ def _time_convergence(frame: pd.DataFrame) -> str:
             .rename("best_reduced_pos_rmse_rel"))
     table = refs.merge(best, left_on="scenario", right_index=True, how="left")
     return (_note("ref_dt_change: pos_rmse_rel of the full-space solver at half the reference's time step against "
-                  "the reference. The reference's own time-discretisation error is at least that (twice it where "
-                  "backward Euler is in its first-order regime): where it exceeds an accuracy target, the target "
-                  "measures how differently the solvers dissipate numerically, not how well they do physics.")
+                  "the reference. Where the error shrinks with dt, the reference's own time-discretisation error is at "
+                  "least half of it, and about twice it once backward Euler is in its first-order range: where it "
+                  "exceeds an accuracy target, the target measures how differently the solvers dissipate "
+                  "numerically, not how well they do physics.")
             + _table(table))
 
 
