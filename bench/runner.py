@@ -244,15 +244,11 @@ def with_ref_dt_change(rows: list[dict]) -> list[dict]:
     shrinks with dt the reference's own time-discretisation error is at least half of it, and about twice it once
     backward Euler is in its first-order range; a reduced model's error of that order is within the reference's
     own accuracy."""
-    ref_dt = {r["scenario"]: r.get("dt") for r in rows if r.get("variant") == "reference"}
-    finer: dict[str, tuple[float, float]] = {}
-    for r in rows:
-        dt, base = r.get("dt"), ref_dt.get(r["scenario"])
-        if (r.get("solver") == "full" and r.get("variant") != "reference" and not r.get("remesh")
-                and r.get("status") == "ok" and dt is not None and base is not None and dt < base
-                and (r["scenario"] not in finer or dt < finer[r["scenario"]][0])):
-            finer[r["scenario"]] = (dt, r.get("pos_rmse_rel"))
-    return [r | {"ref_dt_change": finer[r["scenario"]][1]} if r["scenario"] in finer else r for r in rows]
+    ref_dt = {r["scenario"]: r.get("dt") or 0.0 for r in rows if r.get("variant") == "reference"}
+    finer = [r for r in rows if r.get("solver") == "full" and not r.get("remesh") and r.get("status") == "ok"
+             and r.get("dt") is not None and r["dt"] < ref_dt.get(r["scenario"], 0.0)]
+    change = {r["scenario"]: r.get("pos_rmse_rel") for r in sorted(finer, key=lambda r: -r["dt"])}  # finest last
+    return [r | {"ref_dt_change": change[r["scenario"]]} if r["scenario"] in change else r for r in rows]
 
 
 def _timing(stats: dict, ref_stats: dict) -> dict:

@@ -201,7 +201,7 @@ def test_killed_run_resumes_without_recomputing(tmp_path, suite_file):
 
 def test_sigterm_stops_the_workers_with_the_run(tmp_path):
     """A run stopped with SIGTERM exits at once and takes its pool workers with it (a worker left behind would
-    compute its long run to the end); the rerun still resumes."""
+    compute its long run to the end), and nothing half-done is stored."""
     import signal
     import subprocess
     import sys
