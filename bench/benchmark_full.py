@@ -12,11 +12,11 @@ import argparse
 from dataclasses import replace
 
 from bench.cli import parse_mesh
-from reports.table import provenance
+from analysis.table import provenance
 from scenarios.model import TimeSpec
 from scenarios.suites import load_suite
 from solvers.run import run_scenario
-from solvers.trajectory import write_json_atomic
+from scenarios.atomic import write_json_atomic
 
 
 def benchmark(meshes: list[str], device: str, steps: int, linear: str) -> list[dict]:

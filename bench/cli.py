@@ -64,7 +64,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out."""
     from reports.export import export_vtu_series
     from solvers.run import run_scenario
-    from solvers.trajectory import write_json_atomic
+    from scenarios.atomic import write_json_atomic
 
     scenario = resolve_scenario(args.scenario)
     params = {}
@@ -155,13 +155,12 @@ def cmd_gate(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from bench.gates import check, load_gates
-    from bench.reporting import GATES_FILE
-    from bench.runner import load_run_info
+    from bench.store import load_run_info
 
     from scenarios.suites import load_suite
 
     suite = load_suite(load_run_info(args.dir)["suite"]).name  # gates name suites; a run may name a suite file
-    verdicts = check(pd.read_csv(Path(args.dir) / "results.csv"), load_gates(args.gates or GATES_FILE), suite)
+    verdicts = check(pd.read_csv(Path(args.dir) / "results.csv"), load_gates(args.gates), suite)
     binding = [v for v in verdicts if not v.advisory]
     failed = [v for v in binding if not v.passed]
     for v in failed:
@@ -229,7 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("gate", help="check gates.toml against stored results (exit 1 if any fails)")
     s.add_argument("dir")
-    s.add_argument("--gates", help="gates file (default: the repository's gates.toml)")
+    s.add_argument("--gates", help="gates file (default: the gates.toml shipped with the package)")
     s.set_defaults(func=cmd_gate)
     return p
 

@@ -1,6 +1,7 @@
 """CI gates: thresholds per suite and solver variant from `gates.toml`, checked against results.csv.
 
-Format (`gates.toml` at the repository root):
+The shipped gates are `bench/gates.toml`, package data of `bench` (found in an installed copy too); a run may
+name another file. Format:
 
     [[gate]]
     suite = "quick"            # which suite's results it applies to
@@ -19,11 +20,12 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import pandas as pd
 
-from reports.table import variant_labels
+from analysis.table import variant_labels
 
 
 @dataclass(frozen=True)
@@ -40,10 +42,17 @@ class Verdict:
     advisory: bool = False
 
 
-def load_gates(path: str | Path) -> list[dict]:
-    """The `[[gate]]` entries of a gates file."""
-    with open(path, "rb") as f:
-        return tomllib.load(f).get("gate", [])
+#: Name of the shipped gates file inside the `bench` package.
+SHIPPED_GATES = "gates.toml"
+
+
+def load_gates(path: str | Path | None = None) -> list[dict]:
+    """The `[[gate]]` entries of a gates file; None reads the shipped one (package data of `bench`)."""
+    if path is None:
+        text = resources.files("bench").joinpath(SHIPPED_GATES).read_text(encoding="utf-8")
+    else:
+        text = Path(path).read_text(encoding="utf-8")
+    return tomllib.loads(text).get("gate", [])
 
 
 def _passes(value: object, gate: dict) -> bool:

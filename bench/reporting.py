@@ -6,23 +6,19 @@ from pathlib import Path
 
 import pandas as pd
 
+from analysis.metrics import error_over_time
 from bench.gates import check, load_gates
-from bench.store import RunStore
+from bench.store import RunStore, load_run_info
 from reports.html import ScenarioRuns, write_report_html
+from scenarios.suites import load_suite
 
-GATES_FILE = Path(__file__).resolve().parent.parent / "gates.toml"
-
-
-def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scenarios: int = 4) -> Path:
-    """Rebuild `out/report.html` from `out/results.csv` and the run store; renders the first scenarios."""
-    from bench.runner import load_run_info
-
+def build_report(out: str | Path, gates_file: str | Path | None = None, max_scenarios: int = 4) -> Path:
+    """Rebuild `out/report.html` from `out/results.csv` and the run store, judged by `gates_file` (None: the
+    shipped gates); renders the first scenarios."""
     out = Path(out)
     results = pd.read_csv(out / "results.csv")
-    from scenarios.suites import load_suite
-
     suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path
-    verdicts = check(results, load_gates(gates_file), suite.name) if Path(gates_file).is_file() else []
+    verdicts = check(results, load_gates(gates_file), suite.name)
     planes = {m.scenario.name: m.scenario.plane for m in suite.scenarios}
     store = RunStore(out / "runs")
     runs = []
@@ -39,5 +35,7 @@ def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scena
                 traj, _ = store.load(row["run"])
                 if traj is not None:
                     others[f"{row['solver']}/{row['variant']}"] = traj
-        runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, plane=planes.get(scenario)))
+        errors = {label: error_over_time(ref, traj) for label, traj in others.items()}
+        runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, errors=errors,
+                                 plane=planes.get(scenario)))
     return write_report_html(results, out, gates=verdicts, runs=runs, title=f"frictionbench: {suite.name} suite")

@@ -9,7 +9,6 @@ Runs execute through a pluggable executor (`executors.make_executor`: a local pr
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Sequence
@@ -19,13 +18,17 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from analysis.derived import with_remesh_ratio
+from analysis.metrics import compare
+from analysis.table import write_results_csv
+from analysis.transfer import transfer_to_mesh
 from bench.executors import make_executor
-from bench.metrics import bbox_diagonal, compare
 from bench.store import RunStore, run_key
+from scenarios.atomic import write_json_atomic
+from scenarios.meshes import bbox_diagonal
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, load_suite
 from solvers.model import resolved
-from solvers.trajectory import write_json_atomic
 
 
 @dataclass(frozen=True)
@@ -143,14 +146,12 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
                 tasks.append(task)
     run_tasks(tasks, store, device, jobs, executor, "solver variants")
     rows = collect_rows(suite, refs, resolved, variants, store)
-    from reports.table import write_results_csv
-
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
                                          "wall_s": time.perf_counter() - t0})
     if report:
-        from bench.reporting import build_report
+        from bench.reporting import build_report  # here, not above: the worker processes need no plotting
 
         build_report(out)
     return csv
@@ -208,8 +209,6 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
             if mesh is None or v.transfer:
                 v_ref, v_ref_stats = ref, ref_stats
                 if mesh is not None and traj is not None:
-                    from bench.transfer import transfer_to_mesh
-
                     traj = transfer_to_mesh(traj, ref)
             else:
                 v_ref, v_ref_stats = store.load(Task(sc, "full", {}, mesh).key)
@@ -219,22 +218,6 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
             rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, task.scenario, stats))
     return with_ref_dt_change(with_remesh_ratio(rows))
-
-
-def with_remesh_ratio(rows: list[dict]) -> list[dict]:
-    """Rows with `remesh_ratio` on each row of a model run on another mesh than its training mesh: its
-    pos_rmse_rel / that of the same model on the same scenario on the training mesh (1 = remeshing costs nothing;
-    empty where either run failed)."""
-    on_train = {(r["scenario"], r["solver"], r["variant"]): r.get("pos_rmse_rel") for r in rows
-                if not r.get("remesh") and r.get("status") == "ok"}
-    out = []
-    for r in rows:
-        if r.get("remesh") and r.get("train_mesh"):
-            base, err = on_train.get((r["scenario"], r["solver"], r.get("model"))), r.get("pos_rmse_rel")
-            ratio = err / base if base and err is not None and r.get("status") == "ok" else None
-            r = r | {"remesh_ratio": ratio}
-        out.append(r)
-    return out
 
 
 def with_ref_dt_change(rows: list[dict]) -> list[dict]:
@@ -277,8 +260,3 @@ def _basis_of(stats: dict) -> np.ndarray | None:
     """The basis stored beside a reduced run, for the projection error (None for full-space runs)."""
     path = stats.get("basis_path")
     return np.load(path) if path and Path(path).is_file() else None
-
-
-def load_run_info(out: str | Path) -> dict:
-    """The run.json of a results folder."""
-    return json.loads((Path(out) / "run.json").read_text())

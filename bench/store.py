@@ -11,9 +11,10 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
+from scenarios.atomic import write_json_atomic
 from scenarios.load import scenario_to_dict
 from scenarios.model import MeshSpec, Scenario
-from solvers.trajectory import Trajectory, write_json_atomic
+from solvers.trajectory import Trajectory
 
 
 @lru_cache(maxsize=64)
@@ -64,3 +65,8 @@ class RunStore:
         stats = json.loads((folder / "stats.json").read_text())
         path = folder / "trajectory.npz"
         return (Trajectory.load(path) if path.is_file() else None), stats
+
+
+def load_run_info(out: str | Path) -> dict:
+    """The run.json of a results folder (suite, device, variants, ...; written by `bench.runner.run_suite`)."""
+    return json.loads((Path(out) / "run.json").read_text())

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
 
-from bench.metrics import vertex_velocities
+from analysis.metrics import vertex_velocities
+from scenarios.atomic import write_text_atomic
 from solvers.trajectory import Trajectory
 
 
@@ -36,17 +36,3 @@ def export_vtu_series(traj: Trajectory, out_dir: str | os.PathLike, name: str = 
                      "  <Collection>", *entries, "  </Collection>", "</VTKFile>", ""])
     return write_text_atomic(out / f"{name}.pvd", xml)
 
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
-    """Write text (UTF-8) to path through a temporary file renamed into place; creates the folder; returns path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path

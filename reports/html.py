@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.metrics import align_frames, error_over_time
-from reports.export import write_text_atomic
+from analysis.derived import remeshing_summary
+from analysis.metrics import align_frames
+from analysis.table import PROVENANCE_COLUMNS, results_frame, variant_labels
 from reports.plots import accuracy_vs_time_figure, error_over_time_figure, figure_png
 from reports.render import Renderer, render_surface, select_renderer, view_bounds
-from reports.table import PROVENANCE_COLUMNS, results_frame, variant_labels
+from scenarios.atomic import write_text_atomic
 from scenarios.model import Plane
 from solvers.trajectory import Trajectory
 
@@ -48,15 +49,18 @@ img { max-width: 100%; } figure { margin: .5em 0; } figcaption { font-size: .85e
 
 @dataclass(frozen=True)
 class ScenarioRuns:
-    """Trajectories of one scenario for the error-over-time plot and the renders.
+    """Trajectories of one scenario for the renders, and their errors for the error-over-time plot.
 
     scenario: its name (a heading); reference: the full-space run; others: label -> run compared with it, each
-    on the reference's mesh; plane: drawn in the renders; reference_label: the reference's label.
+    on the reference's mesh; errors: label -> (t (F,) [s], e (F,) [-]), the per-frame error of that run against
+    the reference (`analysis.metrics.error_over_time`); plane: drawn in the renders; reference_label: the
+    reference's label.
     """
 
     scenario: str
     reference: Trajectory
     others: Mapping[str, Trajectory] = field(default_factory=dict)
+    errors: Mapping[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     plane: Plane | None = None
     reference_label: str = "full"
 
@@ -170,8 +174,7 @@ def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:
     """One error-over-time plot per scenario."""
     parts = []
     for run in runs:
-        curves = {label: error_over_time(run.reference, traj) for label, traj in run.others.items()}
-        fig = error_over_time_figure(curves, f"{run.scenario}: error against {run.reference_label}")
+        fig = error_over_time_figure(run.errors, f"{run.scenario}: error against {run.reference_label}")
         parts.append(_png(figure_png(fig), f"error over time, {run.scenario}", run.scenario))
     return "\n".join(parts)
 
@@ -209,26 +212,13 @@ def _stick_slip(frame: pd.DataFrame) -> str:
 
 
 def _remeshing(frame: pd.DataFrame) -> str:
-    """Error of each model on its training mesh and on the other meshes it ran on, and their ratio."""
-    needed = {"train_mesh", "mesh", "solver", "pos_rmse_rel"}
-    if not needed <= set(frame.columns):
-        return _note("No remeshing rows (the results have no train_mesh column).")
-    rows = frame[frame["train_mesh"].notna() & (frame["train_mesh"].astype(str) != "")].copy()
-    if not (rows["mesh"] != rows["train_mesh"]).any():
+    """Error of each model on its training mesh and on the other meshes it ran on, and the remesh ratio."""
+    table = remeshing_summary(frame)
+    if table.empty:
         return _note("No remeshing rows (no run on a mesh other than its model's training mesh).")
-    # one model = solver + its `model` label (variants that differ only by the mesh they ran on share it)
-    rows["solver variant"] = (rows["solver"].astype(str) + "/" + rows["model"].astype(str) if "model" in rows
-                              else variant_labels(rows))
-    rows["pos_rmse_rel"] = pd.to_numeric(rows["pos_rmse_rel"], errors="coerce")
-    keys = ["solver variant", "train_mesh"] + (["split"] if "split" in rows else [])
-    table = (rows.groupby(keys + ["mesh"], dropna=False)["pos_rmse_rel"]
-             .agg(runs="count", median_pos_rmse_rel="median").reset_index())
-    on_train = (table.loc[table["mesh"] == table["train_mesh"], keys + ["median_pos_rmse_rel"]]
-                .rename(columns={"median_pos_rmse_rel": "on_training_mesh"}))
-    table = table.merge(on_train, on=keys, how="left")
-    table["ratio_to_training_mesh"] = table["median_pos_rmse_rel"] / table.pop("on_training_mesh")
-    return (_note("Median pos_rmse_rel of each model on its training mesh and on other meshes of the same shape; "
-                  "the ratio is other mesh / training mesh (1 = remeshing costs nothing).")
+    return (_note("Median pos_rmse_rel of each model on its training mesh and on other meshes of the same shape, "
+                  "and the median remesh ratio: a run's error on the other mesh / the same model's on the same "
+                  "scenario on its training mesh (1 = remeshing costs nothing).")
             + _table(table))
 
 

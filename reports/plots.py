@@ -11,7 +11,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from reports.table import variant_labels
+from analysis.table import variant_labels
 
 
 def figure_png(fig: Figure, dpi: int = 100) -> bytes:

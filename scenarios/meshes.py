@@ -26,7 +26,6 @@ import argparse
 import hashlib
 import json
 import os
-import tempfile
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -39,6 +38,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from scenarios import meshgen
+from scenarios.atomic import atomic_open
 from scenarios.errors import MeshError
 from scenarios.model import MeshSpec
 
@@ -93,7 +93,7 @@ class TetMesh:
 
     def bbox_diagonal(self) -> float:
         """Length of the diagonal of the axis-aligned bounding box of X [m]."""
-        return _bbox_diagonal(self.X)
+        return bbox_diagonal(self.X)
 
     def surface_areas(self) -> Array:
         """Area of each boundary triangle, (k,) [m^2]."""
@@ -124,7 +124,7 @@ class TetMesh:
         return replace(self, X=self.X * factor)
 
 
-def _bbox_diagonal(X: Array) -> float:
+def bbox_diagonal(X: Array) -> float:
     """Length of the bounding-box diagonal of points X (n, 3) [m]."""
     return float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
 
@@ -211,7 +211,7 @@ def _drop_unreferenced(X: Array, tets: Array) -> tuple[Array, Array]:
 def _checked_orientation(X: Array, tets: Array, source: str, fix_orientation: bool) -> Array:
     """Reject degenerate tets; flip (fix_orientation) or reject inverted ones. Returns positive tets."""
     volumes = meshgen.signed_volumes(X, tets)
-    tolerance = DEGENERATE_VOLUME_FACTOR * _bbox_diagonal(X) ** 3
+    tolerance = DEGENERATE_VOLUME_FACTOR * bbox_diagonal(X) ** 3
     _require(np.abs(volumes) >= tolerance, source, "tet",
              f"tets are degenerate (|volume| < {tolerance:.3g} m^3: flat or collapsed)")
     inverted = volumes < 0
@@ -560,17 +560,9 @@ def generate_and_store(entry: Recipe, path: Path) -> TetMesh:
     mesh = _built_mesh(entry)
     provenance = {"seconds": round(time.perf_counter() - start, 2),
                   **{lib: _version(lib) for lib in ("pytetwild", "manifold3d", "numpy")}}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=path.stem, suffix=".tmp", delete=False) as file:
-        try:
-            np.savez_compressed(file, X=mesh.X, tets=mesh.tets.astype(np.int32), key=entry.key,
-                                params=json.dumps(entry.params, sort_keys=True),
-                                provenance=json.dumps(provenance))
-        except BaseException:
-            os.unlink(file.name)
-            raise
-    os.chmod(file.name, 0o644)  # NamedTemporaryFile creates 0600
-    os.replace(file.name, path)
+    with atomic_open(path, "wb") as file:
+        np.savez_compressed(file, X=mesh.X, tets=mesh.tets.astype(np.int32), key=entry.key,
+                            params=json.dumps(entry.params, sort_keys=True), provenance=json.dumps(provenance))
     return mesh
 
 

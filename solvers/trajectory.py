@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from scenarios.atomic import atomic_open
 
 
 @dataclass
@@ -51,17 +52,9 @@ class Trajectory:
         if self.q is not None:
             arrays["q"] = self.q
         arrays["meta"] = np.array(json.dumps(self.meta, sort_keys=True, default=str))
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez_compressed(f, **arrays)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
+        with atomic_open(path, "wb") as f:
+            np.savez_compressed(f, **arrays)
+        return Path(path)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Trajectory":
@@ -73,17 +66,3 @@ class Trajectory:
                 v=z["v"] if "v" in z else None, q=z["q"] if "q" in z else None, meta=meta,
             )
 
-
-def write_json_atomic(path: str | os.PathLike, obj: object) -> Path:
-    """Write `obj` as indented JSON to `path` atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=2, sort_keys=True, default=str)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path

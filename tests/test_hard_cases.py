@@ -9,7 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.metrics import bbox_diagonal, stability, volume_ratio
+from analysis.metrics import stability, volume_ratio
+from scenarios.meshes import bbox_diagonal
 from scenarios.suites import load_suite
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.model import State, build_model, resolved

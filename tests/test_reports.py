@@ -17,13 +17,9 @@ import pandas as pd
 import pytest
 import pyvista
 
-from bench import metrics
-from reports import render
-from reports.export import export_vtu_series
-from reports.html import ScenarioRuns, write_report_html
-from reports.plots import pareto_front
-from reports.render import render_surface, select_renderer, view_bounds
-from reports.table import (
+from analysis import metrics
+from analysis.derived import with_remesh_ratio
+from analysis.table import (
     IDENTITY_COLUMNS,
     METRIC_COLUMNS,
     PROVENANCE_COLUMNS,
@@ -31,6 +27,11 @@ from reports.table import (
     provenance,
     write_results_csv,
 )
+from reports import render
+from reports.export import export_vtu_series
+from reports.html import ScenarioRuns, write_report_html
+from reports.plots import pareto_front
+from reports.render import render_surface, select_renderer, view_bounds
 from scenarios.model import Material, Plane
 from solvers.trajectory import Trajectory
 
@@ -111,7 +112,7 @@ def test_results_csv_column_order_and_round_trip(tmp_path: Path, runs) -> None:
 
 
 def test_provenance_fields_without_importing_torch() -> None:
-    code = ("import sys, json; from reports.table import provenance; p = provenance('cpu', gpu_name=''); "
+    code = ("import sys, json; from analysis.table import provenance; p = provenance('cpu', gpu_name=''); "
             "print(json.dumps({'torch_imported': 'torch' in sys.modules, 'keys': list(p), 'numpy': p['numpy_version'],"
             " 'commit': p['commit']}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
@@ -174,10 +175,13 @@ def check_html(page: str) -> _TagChecker:
 
 def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     ref, others = runs
+    errors = {label: metrics.error_over_time(ref, traj) for label, traj in others.items()}
     gates = [{"gate": "accuracy", "passed": True, "value": 0.01, "threshold": 0.05},
              {"gate": "speed", "passed": False, "value": 3.0, "threshold": 5.0}]
-    path = write_report_html(result_rows(runs), tmp_path, gates=gates,
-                             runs=[ScenarioRuns("slide", ref, others, plane=PLANE)], renderer="matplotlib",
+    rows = with_remesh_ratio([r | {"remesh": "alt", "model": "r16"} if r["mesh"] == "block/coarse_alt" else r
+                              for r in result_rows(runs)])
+    path = write_report_html(rows, tmp_path, gates=gates,
+                             runs=[ScenarioRuns("slide", ref, others, errors, plane=PLANE)], renderer="matplotlib",
                              extra_sections=[("Notes", "<p>hand-written</p>")])
     page = path.read_text(encoding="utf-8")
     assert path == tmp_path / "report.html" and page.startswith("<!DOCTYPE html>")

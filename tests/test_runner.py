@@ -106,7 +106,7 @@ def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_f
 
 
 def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_training_mesh():
-    from bench.runner import with_remesh_ratio
+    from analysis.derived import with_remesh_ratio
 
     def row(scenario, variant, err, remesh="", model=None, status="ok"):
         return {"scenario": scenario, "solver": "licrom", "variant": variant, "model": model or variant,
@@ -162,7 +162,7 @@ def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tm
 def test_transfer_reproduces_a_linear_field_exactly(block):
     import numpy as np
 
-    from bench.transfer import transfer_to_mesh
+    from analysis.transfer import transfer_to_mesh
     from scenarios.meshes import load_mesh
     from scenarios.model import MeshSpec
     from solvers.trajectory import Trajectory
@@ -302,7 +302,7 @@ def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
     from bench.gates import load_gates
 
     labels = {"full/reference"} | {f"{v.solver}/{v.label or v.solver}" for v in parse_variants(None, suite=suite)}
-    for gate in load_gates(Path(__file__).parents[1] / "gates.toml"):
+    for gate in load_gates():
         if gate["suite"] == suite and gate["variant"] != "*":
             named = gate["variant"] if isinstance(gate["variant"], list) else [gate["variant"]]
             assert set(named) <= labels, (gate, sorted(labels))

@@ -21,7 +21,8 @@ from solvers.baselines import affine_basis, pod_basis
 from solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
 from solvers.licrom.reduced import ReducedSolver
 from solvers.model import Model
-from solvers.trajectory import Trajectory, write_json_atomic
+from scenarios.atomic import write_json_atomic
+from solvers.trajectory import Trajectory
 
 
 class PluginError(ValueError):

@@ -50,6 +50,7 @@ from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
 from solvers.physics import contact as pc
 from solvers.physics import friction as pf
+from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_gradients
 from solvers.simulate import simulate
 from solvers.step_stats import StepStats
@@ -216,8 +217,7 @@ class _SamplePoints:
         tets = m.tets[rm.cub_ids]
         vertices, local = np.unique(tets, return_inverse=True)
         local = local.reshape(tets.shape)
-        weight = np.zeros(vertices.size)
-        np.add.at(weight, local, np.repeat(m.scenario.material.density * rm.wV[:, None] / 4.0, 4, axis=1))
+        weight = lumped_mass(rm.wV, local, vertices.size, m.scenario.material.density)
         Wv = rm.W[vertices].reshape(-1, rm.r)
         S = Wv.T @ (np.repeat(weight, 3)[:, None] * Wv)
         return cls(vertices, weight, local, shape_gradients(m.Dm_inv[rm.cub_ids]), S, cho_factor(S))

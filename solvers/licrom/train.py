@@ -22,19 +22,22 @@ import logging
 import os
 import platform
 import random
-import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field as dataclass_field
 from pathlib import Path
-from typing import IO, Iterator
+from typing import Iterator
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
+from scenarios.atomic import atomic_open
+from scenarios.meshes import bbox_diagonal
 from solvers.licrom.network import N_AFFINE, NeuralField, PointNetEncoder, fit_affine
+from solvers.physics.inertia import lumped_mass
+from solvers.physics.material import shape_matrices
 from solvers.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -110,7 +113,7 @@ class TrainingData:
         if not trajs:
             raise ValueError("no trajectories given")
         X0 = np.asarray(trajs[0].X, dtype=np.float64)
-        tolerance = 1e-9 * max(float(np.linalg.norm(X0.max(axis=0) - X0.min(axis=0))), 1e-300)
+        tolerance = 1e-9 * max(bbox_diagonal(X0), 1e-300)
         for i, traj in enumerate(trajs[1:], start=1):
             if traj.X.shape != X0.shape or np.abs(np.asarray(traj.X, dtype=np.float64) - X0).max() > tolerance:
                 raise ValueError(
@@ -120,14 +123,8 @@ class TrainingData:
                 )
         u = np.concatenate([np.asarray(t.x, dtype=np.float64) - X0 for t in trajs], axis=0)
         tets = np.asarray(trajs[0].tets)
-        return cls.from_arrays(X0, u, lumped_volumes(X0, tets) if tets.size else None)
-
-
-def lumped_volumes(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    """Vertex volumes [m^3] (n,): each tet's volume split equally over its 4 vertices. X (n, 3), tets (m, 4)."""
-    P = X[tets]  # (m, 4, 3)
-    volume = np.abs(np.linalg.det(P[:, 1:] - P[:, :1])) / 6.0
-    return np.bincount(tets.ravel(), weights=np.repeat(volume / 4.0, 4), minlength=X.shape[0])
+        volumes = lumped_mass(shape_matrices(X0, tets)[1], tets, X0.shape[0], 1.0) if tets.size else None
+        return cls.from_arrays(X0, u, volumes)  # lumped vertex volumes: the lumped masses of unit density
 
 
 @dataclass
@@ -194,7 +191,9 @@ class Checkpoint:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write to `path` atomically (temporary file renamed into place); returns the path."""
-        return _write_atomic(Path(path), "wb", lambda f: torch.save(self.to_dict(), f))
+        with atomic_open(path, "wb") as f:
+            torch.save(self.to_dict(), f)
+        return Path(path)
 
 
 def load_checkpoint(path: str | os.PathLike, expected_r: int | None = None) -> Checkpoint:
@@ -469,11 +468,11 @@ def train_from_trajectories(
 
 def write_loss_csv(history: Sequence[float], path: Path) -> Path:
     """Write `epoch,loss` rows (epochs from 1) to `path` atomically."""
-    def write(f: IO) -> None:
+    with atomic_open(path, "w") as f:
         writer = csv.writer(f, lineterminator="\n")
         writer.writerow(["epoch", "loss"])
         writer.writerows((epoch, repr(float(loss))) for epoch, loss in enumerate(history, start=1))
-    return _write_atomic(path, "w", write)
+    return path
 
 
 def plot_loss(ckpt: Checkpoint, path: Path) -> Path | None:
@@ -491,20 +490,8 @@ def plot_loss(ckpt: Checkpoint, path: Path) -> Path | None:
     axes.set_title(f"LiCROM r = {ckpt.r}{' (affine)' if ckpt.arch['affine'] else ''}")
     axes.grid(True, which="both", alpha=0.3)
     figure.tight_layout()
-    return _write_atomic(path, "wb", lambda f: figure.savefig(f, format="png"))
-
-
-def _write_atomic(path: Path, mode: str, write: Callable[[IO], object]) -> Path:
-    """Call write(file) on a temporary file next to `path`, then rename it into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, mode) as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_open(path, "wb") as f:
+        figure.savefig(f, format="png")
     return path
 
 

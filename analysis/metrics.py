@@ -1,4 +1,4 @@
-"""Metrics of one trajectory against a reference trajectory on the same mesh (DESIGN.md section 8).
+"""Metrics of one trajectory against a reference trajectory on the same mesh (docs/design.md, "Metrics").
 
 Every function is pure: trajectories in, numbers out. Units are SI; every `*_rel` metric is divided by the
 length scale L = |max(X) - min(X)|, the diagonal of the rest mesh's bounding box, so it is dimensionless.
@@ -14,10 +14,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from scenarios.meshes import TetMesh
+from scenarios.meshes import TetMesh, bbox_diagonal
 from scenarios.model import Contact, Material, Plane
 from solvers.physics.contact import lagged_pressure
 from solvers.physics.friction import creep_speed
+from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
 from solvers.trajectory import Trajectory
 
@@ -34,19 +35,6 @@ METRIC_KEYS: tuple[str, ...] = (
     "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "inverted_tets_final",
     "volume_ratio_final", "energy_ratio_max", "creep_speed_law", "creep_ratio",
 )
-
-
-def bbox_diagonal(X: np.ndarray) -> float:
-    """L = |max_i X_i - min_i X_i| [m]: diagonal of the axis-aligned bounding box of rest positions X (n, 3)."""
-    return float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
-
-
-def lumped_masses(X: np.ndarray, tets: np.ndarray, density: float) -> np.ndarray:
-    """Lumped vertex masses m_i = sum over tets e containing i of rho |V_e| / 4, shape (n,) [kg]."""
-    _, vol = shape_matrices(X, tets)
-    m = np.zeros(X.shape[0])
-    np.add.at(m, tets, np.repeat(density * np.abs(vol)[:, None] / 4.0, 4, axis=1))
-    return m
 
 
 def _unit_plane(normal: ArrayLike3, offset: float = 0.0) -> tuple[np.ndarray, float]:
@@ -252,7 +240,7 @@ def finite(traj: Trajectory) -> bool:
 def max_penetration_rel(traj: Trajectory, plane_normal: ArrayLike3, plane_offset: float) -> float:
     """max(0, max over frames k and surface vertices i of -(n . x_ki - d)) / L for the plane n . x = d.
 
-    Contact acts on the boundary surface (DESIGN.md section 5), so penetration is the surface's. An interior
+    Contact acts on the boundary surface (docs/design.md, "Contact"), so penetration is the surface's. An interior
     vertex can only pass the plane while the surface stays above it if the elements between them invert,
     which `inverted_tets` reports.
     """
@@ -319,7 +307,7 @@ def creep_speed_law(traj: Trajectory, plane: Plane, contact: Contact, material: 
     x = traj.x[_tail(traj.t, tail_fraction)][:, pts]
     fn = lagged_pressure(contact.law, x, np.zeros_like(x), n, d, contact.stiffness, 0.0, contact.barrier_stiffness,
                          contact.barrier_distance)
-    weight = lumped_masses(traj.X, traj.tets, material.density).sum()
+    weight = _body_masses(traj, material, None).sum()
     g_t = float(np.linalg.norm(_tangential(np.asarray(gravity, dtype=float), n)))
     return creep_speed(area[pts], fn.mean(axis=0), plane.friction, contact.friction_stiffness, weight * g_t)
 
@@ -332,7 +320,7 @@ def _edge_matrices(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
 def _body_masses(traj: Trajectory, material: Material, masses: np.ndarray | None) -> np.ndarray:
     """Vertex masses (n,) [kg]: the given ones, else the lumped masses of the material's density."""
     if masses is None:
-        return lumped_masses(traj.X, traj.tets, material.density)
+        return lumped_mass(shape_matrices(traj.X, traj.tets)[1], traj.tets, traj.X.shape[0], material.density)
     return _masses(traj.X.shape[0], masses)
 
 
@@ -415,7 +403,7 @@ def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, ma
     any trajectory x = X + W q). Metrics without their input are None.
     """
     if masses is None and material is not None:
-        masses = lumped_masses(ref.X, ref.tets, material.density)
+        masses = _body_masses(ref, material, None)
     i_ref, _ = align_frames(ref.t, traj.t)
     row: dict[str, float | int | bool | None] = {
         "frames_compared": int(i_ref.size),

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.metrics import METRIC_KEYS
-from reports.export import write_text_atomic
+from analysis.metrics import METRIC_KEYS
+from scenarios.atomic import write_text_atomic
 
 IDENTITY_COLUMNS: tuple[str, ...] = ("suite", "scenario", "split", "mesh", "train_mesh", "solver", "variant")
 PARAM_PREFIX = "param_"
