@@ -1,0 +1,183 @@
+"""Is behaviour unchanged? Compare two results folders of one suite, or run the suite on a base commit and on the
+working tree first and compare those.
+
+    python -m bench.unchanged --base 1ecc70a --suite quick --out out/unchanged   # runs both, then compares
+    python -m bench.unchanged OLD_DIR NEW_DIR                                    # two existing results folders
+
+Rows are matched by their identity columns (suite, scenario, split, mesh, train_mesh, solver, variant). Every
+other column is compared except timing and provenance (`IGNORED_COLUMNS`, `*_version`): numbers to a relative
+tolerance, 1e-9 for the rows of the exact solvers (`--exact`, default the full-space solver) and 1e-6 for the
+others (reduced solvers: their training and cubature add round-off), booleans and text exactly, two missing
+values are equal. The gate verdicts of the shipped gates (or `--gates`) must agree row by row. A row or a
+compared column that one side lacks is a difference; a column only the new side has is listed as a note.
+Prints a summary and exits 1 on any difference, 0 when none.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from analysis.table import IDENTITY_COLUMNS, PROVENANCE_COLUMNS, TIMING_COLUMNS
+from bench.gates import check, load_gates
+from bench.store import load_run_info
+from scenarios.suites import load_suite
+
+#: Columns never compared: measured times (and what is derived from them) and provenance.
+IGNORED_COLUMNS: frozenset[str] = frozenset(TIMING_COLUMNS) | frozenset(PROVENANCE_COLUMNS) | {"warmup_s", "run"}
+EXACT_RTOL = 1e-9
+REDUCED_RTOL = 1e-6
+#: Absolute floor of the comparison: values within it of each other are equal whatever their ratio.
+ATOL = 1e-12
+
+
+@dataclass(frozen=True)
+class Difference:
+    """One thing that differs: where (row identity or gate), what (column), the two values."""
+
+    where: str
+    what: str
+    old: object
+    new: object
+
+    def __str__(self) -> str:
+        return f"{self.where}: {self.what}: {self.old!r} -> {self.new!r}"
+
+
+def _missing(value: object) -> bool:
+    return value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA
+
+
+def values_equal(old: object, new: object, rtol: float, atol: float = ATOL) -> bool:
+    """Equal within rtol (relative to the larger magnitude) or atol for numbers; exact for anything else; two
+    missing values (None, NaN, empty cell) are equal, and so are two infinities of one sign."""
+    if _missing(old) or _missing(new):
+        return _missing(old) and _missing(new)
+    if isinstance(old, bool) or isinstance(new, bool) or isinstance(old, str) or isinstance(new, str):
+        return str(old).lower() == str(new).lower()
+    return math.isclose(float(old), float(new), rel_tol=rtol, abs_tol=atol)
+
+
+def _identity(frame: pd.DataFrame) -> list[str]:
+    return [c for c in IDENTITY_COLUMNS if c in frame]
+
+
+def _keyed(frame: pd.DataFrame, keys: list[str]) -> dict[tuple, dict]:
+    """Rows by their identity; raises ValueError on a repeated identity (the rows could not be matched)."""
+    rows: dict[tuple, dict] = {}
+    for row in frame.to_dict("records"):
+        key = tuple("" if _missing(row[k]) else str(row[k]) for k in keys)
+        if key in rows:
+            raise ValueError(f"two rows share the identity {dict(zip(keys, key))}")
+        rows[key] = row
+    return rows
+
+
+def compare_results(old: pd.DataFrame, new: pd.DataFrame, exact_solvers: Sequence[str] = ("full",),
+                    exact_rtol: float = EXACT_RTOL, rtol: float = REDUCED_RTOL) -> tuple[list[Difference], list[str]]:
+    """(differences, notes) between two results tables (see the module doc)."""
+    keys = _identity(old)
+    if keys != _identity(new):
+        return [Difference("table", "identity columns", keys, _identity(new))], []
+    compared = [c for c in old.columns if c not in keys and c not in IGNORED_COLUMNS and not c.endswith("_version")]
+    differences = [Difference("table", "column missing", c, None) for c in compared if c not in new]
+    notes = [f"new column {c}" for c in new.columns if c not in old and c not in IGNORED_COLUMNS
+             and not c.endswith("_version")]
+    a, b = _keyed(old, keys), _keyed(new, keys)
+    differences += [Difference(_where(keys, k), "row", "present", "missing") for k in a if k not in b]
+    differences += [Difference(_where(keys, k), "row", "missing", "present") for k in b if k not in a]
+    for key in (k for k in a if k in b):
+        tol = exact_rtol if a[key].get("solver") in exact_solvers else rtol
+        for column in (c for c in compared if c in new):
+            if not values_equal(a[key][column], b[key][column], tol):
+                differences.append(Difference(_where(keys, key), column, a[key][column], b[key][column]))
+    return differences, notes
+
+
+def _where(keys: list[str], key: tuple) -> str:
+    return " ".join(f"{k}={v}" for k, v in zip(keys, key) if k in ("scenario", "mesh", "solver", "variant"))
+
+
+def compare_verdicts(old: pd.DataFrame, new: pd.DataFrame, suite: str, gates: list[dict]) -> list[Difference]:
+    """Gate verdicts that differ between the two tables (a verdict only one side has included)."""
+    def verdicts(frame: pd.DataFrame) -> dict[tuple, bool]:
+        return {(v.gate, v.scenario, v.variant, v.metric): v.passed for v in check(frame, gates, suite)}
+
+    a, b = verdicts(old), verdicts(new)
+    return [Difference(f"gate {k[0]} on {k[1]} [{k[2]}]", k[3], a.get(k), b.get(k))
+            for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+
+
+def compare_folders(old_dir: Path, new_dir: Path, exact_solvers: Sequence[str], gates_file: str | None
+                    ) -> tuple[list[Difference], list[str], int]:
+    """(differences, notes, rows compared) between two results folders of the same suite."""
+    old, new = pd.read_csv(old_dir / "results.csv"), pd.read_csv(new_dir / "results.csv")
+    suites = {load_run_info(d)["suite"] for d in (old_dir, new_dir)}
+    if len(suites) != 1:
+        raise ValueError(f"the folders hold different suites: {sorted(suites)}")
+    differences, notes = compare_results(old, new, exact_solvers)
+    differences += compare_verdicts(old, new, load_suite(suites.pop()).name, load_gates(gates_file))
+    return differences, notes, len(old)
+
+
+def run_suite_at(source: Path, suite: str, out: Path, jobs: int) -> Path:
+    """Run `suite` with the code in `source` (a checkout) into `out`; returns out."""
+    env = os.environ | {"PYTHONPATH": str(source)}
+    cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", suite, "--out", str(out), "--jobs", str(jobs),
+           "--no-report"]
+    print("running:", " ".join(cmd), f"(in {source})", flush=True)
+    subprocess.run(cmd, cwd=source, env=env, check=True)
+    return out
+
+
+def run_base_and_tree(base: str, suite: str, out: Path, jobs: int) -> tuple[Path, Path]:
+    """Run the suite on commit `base` (a temporary git worktree) and on this working tree, into out/base and
+    out/tree; returns both folders."""
+    root = Path(__file__).resolve().parents[1]
+    with tempfile.TemporaryDirectory(prefix="unchanged-") as tmp:
+        checkout = Path(tmp) / "base"
+        subprocess.run(["git", "-C", str(root), "worktree", "add", "--detach", str(checkout), base], check=True)
+        try:
+            run_suite_at(checkout, suite, out / "base", jobs)
+        finally:
+            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(checkout)], check=False)
+    return out / "base", run_suite_at(root, suite, out / "tree", jobs)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m bench.unchanged", description=__doc__.split("\n\n")[0])
+    p.add_argument("folders", nargs="*", type=Path, help="OLD_DIR NEW_DIR: two results folders to compare")
+    p.add_argument("--base", help="a git revision: run the suite on it and on the working tree, then compare")
+    p.add_argument("--suite", default="quick")
+    p.add_argument("--out", type=Path, help="with --base: where the two runs go (default: a folder under out/)")
+    p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--exact", nargs="+", default=["full"], help="solvers compared to 1e-9 (default: full)")
+    p.add_argument("--gates", help="gates file (default: the shipped gates.toml)")
+    args = p.parse_args(argv)
+    if bool(args.base) == (len(args.folders) == 2) or len(args.folders) not in (0, 2):
+        p.error("give either --base REV or two results folders")
+    if args.base:
+        old_dir, new_dir = run_base_and_tree(args.base, args.suite, args.out or Path("out") / "unchanged", args.jobs)
+    else:
+        old_dir, new_dir = args.folders
+    differences, notes, rows = compare_folders(old_dir, new_dir, args.exact, args.gates)
+    for note in notes:
+        print("note:", note)
+    for difference in differences:
+        print("DIFFERENT", difference)
+    print(f"compared {rows} rows of {old_dir} (old) and {new_dir} (new): "
+          + ("unchanged" if not differences else f"{len(differences)} differences"))
+    return 1 if differences else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

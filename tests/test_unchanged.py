@@ -1,0 +1,91 @@
+"""The behaviour-unchanged check (bench.unchanged) on small synthetic results tables."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from bench.unchanged import compare_results, compare_verdicts, main, values_equal
+
+
+def table() -> pd.DataFrame:
+    return pd.DataFrame([
+        {"suite": "quick", "scenario": "quick/a", "split": "test", "solver": "full", "variant": "reference", "pos_rmse_rel": 0.0,
+         "max_penetration_rel": 1.5e-3, "stick": True, "status": "ok", "failure": None, "step_ms_median": 40.0,
+         "commit": "aaa", "numpy_version": "2.0"},
+        {"suite": "quick", "scenario": "quick/a", "split": "test", "solver": "licrom", "variant": "licrom", "pos_rmse_rel": 0.03,
+         "max_penetration_rel": 2.0e-3, "stick": False, "status": "ok", "failure": None, "step_ms_median": 2.0,
+         "commit": "aaa", "numpy_version": "2.0"},
+        {"suite": "quick", "scenario": "quick/a", "split": "test", "solver": "pod", "variant": "pod", "pos_rmse_rel": None,
+         "max_penetration_rel": None, "stick": None, "status": "failed", "failure": "Newton did not converge",
+         "step_ms_median": None, "commit": "aaa", "numpy_version": "2.0"},
+    ])
+
+
+def changed(row: int, column: str, value: object) -> pd.DataFrame:
+    frame = table()
+    frame[column] = frame[column].astype(object)
+    frame.at[row, column] = value
+    return frame
+
+
+def test_a_table_equals_itself_and_timing_and_provenance_are_not_compared() -> None:
+    assert compare_results(table(), table()) == ([], [])
+    other = changed(0, "step_ms_median", 99.0)
+    other["commit"], other["numpy_version"] = "bbb", "2.1"
+    assert compare_results(table(), other) == ([], [])
+
+
+@pytest.mark.parametrize(("row", "factor", "different"), [
+    (0, 1 + 1e-10, False), (0, 1 + 1e-8, True),   # the full-space row: 1e-9
+    (1, 1 + 1e-7, False), (1, 1 + 1e-5, True),    # a reduced row: 1e-6
+])
+def test_numbers_are_compared_to_the_tolerance_of_their_row(row, factor, different) -> None:
+    value = table().at[row, "max_penetration_rel"] * factor
+    differences, _ = compare_results(table(), changed(row, "max_penetration_rel", value))
+    assert bool(differences) == different
+    if different:
+        (d,) = differences
+        assert d.what == "max_penetration_rel" and "solver=" in d.where and d.new == value
+
+
+def test_text_booleans_missing_rows_and_columns_are_differences() -> None:
+    assert [d.what for d in compare_results(table(), changed(2, "failure", "other reason"))[0]] == ["failure"]
+    assert [d.what for d in compare_results(table(), changed(1, "stick", True))[0]] == ["stick"]
+    assert [d.what for d in compare_results(table(), changed(1, "pos_rmse_rel", None))[0]] == ["pos_rmse_rel"]
+    assert [(d.what, d.new) for d in compare_results(table(), table().drop(index=2))[0]] == [("row", "missing")]
+    differences, notes = compare_results(table(), table().drop(columns="stick").assign(extra=1.0))
+    assert [(d.what, d.old) for d in differences] == [("column missing", "stick")] and notes == ["new column extra"]
+
+
+def test_values_equal_treats_two_missing_values_and_equal_infinities_as_equal() -> None:
+    assert values_equal(None, float("nan"), 1e-9) and values_equal(float("inf"), float("inf"), 1e-9)
+    assert not values_equal(None, 0.0, 1e-9) and not values_equal(float("inf"), 1e300, 1e-9)
+    assert values_equal(0.0, 1e-13, 1e-9) and not values_equal(0.0, 1e-9, 1e-9)  # the absolute floor is 1e-12
+
+
+def test_gate_verdicts_must_agree() -> None:
+    gates = [{"suite": "quick", "variant": "licrom/licrom", "metric": "max_penetration_rel", "max": 2.5e-3}]
+    assert compare_verdicts(table(), table(), "quick", gates) == []
+    worse = changed(1, "max_penetration_rel", 3e-3)
+    (d,) = compare_verdicts(table(), worse, "quick", gates)
+    assert (d.old, d.new) == (True, False) and "quick/a" in d.where
+
+
+def write_folder(folder: Path, frame: pd.DataFrame) -> Path:
+    folder.mkdir()
+    frame.to_csv(folder / "results.csv", index=False)
+    (folder / "run.json").write_text(json.dumps({"suite": "quick"}))
+    return folder
+
+
+def test_main_compares_two_folders_and_exits_one_on_a_difference(tmp_path, capsys) -> None:
+    old = write_folder(tmp_path / "old", table())
+    assert main([str(old), str(write_folder(tmp_path / "same", table()))]) == 0
+    assert "compared 3 rows" in capsys.readouterr().out
+    assert main([str(old), str(write_folder(tmp_path / "new", changed(1, "pos_rmse_rel", 0.031)))]) == 1
+    out = capsys.readouterr().out
+    assert "DIFFERENT" in out and "pos_rmse_rel: 0.03 -> 0.031" in out and "1 differences" in out
