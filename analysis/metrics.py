@@ -16,6 +16,7 @@ import numpy as np
 
 from scenarios.meshes import TetMesh, bbox_diagonal
 from scenarios.model import Contact, Material, Plane
+from solvers.baselines import project
 from solvers.physics.contact import lagged_pressure
 from solvers.physics.friction import creep_speed
 from solvers.physics.inertia import lumped_mass
@@ -225,11 +226,10 @@ def proj_rmse_rel(ref: Trajectory, basis: np.ndarray, masses: np.ndarray | None 
     lumped mass matrix M (the reduced solver's own metric). The error itself is always the unweighted RMS.
     """
     n = ref.X.shape[0]
-    W = np.asarray(basis, dtype=float).reshape(3 * n, -1)
-    U = (ref.x - ref.X).reshape(ref.n_frames, 3 * n).T  # (3n, F)
-    w = np.ones(3 * n) if masses is None else np.sqrt(np.repeat(_masses(n, masses), 3))
-    Q = np.linalg.lstsq(w[:, None] * W, w[:, None] * U, rcond=None)[0]  # (r, F)
-    return float(np.sqrt(3.0 * np.mean((W @ Q - U) ** 2))) / bbox_diagonal(ref.X)  # mean over 3nF -> nF
+    W = np.asarray(basis, dtype=float).reshape(n, 3, -1)
+    u = ref.x - ref.X  # (F, n, 3)
+    q = project(W, u, None if masses is None else _masses(n, masses))  # (F, r)
+    return float(np.sqrt(np.mean(np.sum((np.einsum("ncr,fr->fnc", W, q) - u) ** 2, axis=-1)))) / bbox_diagonal(ref.X)
 
 
 def finite(traj: Trajectory) -> bool:

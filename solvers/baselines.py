@@ -2,7 +2,8 @@
 
 - `affine_basis`: the 12 exact affine fields (every rigid motion and every homogeneous strain), mesh-free;
 - `pod_basis`: proper orthogonal decomposition of training displacements, bound to the training mesh;
-- `full_basis`: the complete per-vertex basis (the reduced solver then equals the full-space one).
+- `full_basis`: the complete per-vertex basis (the reduced solver then equals the full-space one);
+- `project`: the coordinates of displacements in a basis (mass-weighted least squares).
 """
 
 from __future__ import annotations
@@ -29,6 +30,25 @@ def affine_basis(X: np.ndarray) -> np.ndarray:
         W[:, c, c] = 1.0
         W[:, c, 3 + 3 * c: 6 + 3 * c] = Xh
     return W
+
+
+def project(W: np.ndarray, u: np.ndarray, mass: np.ndarray | None = None) -> np.ndarray:
+    """Least-squares coordinates of displacements in the basis W (n, 3, r): q = argmin sum_i m_i |W_i q - u_i|^2.
+
+    u: one field (n, 3) [m] -> q (r,), or frames (F, n, 3) -> q (F, r), each frame fitted on its own.
+    mass: (n,) non-negative weights [kg] (default: uniform, the Euclidean fit). Rank-deficient W gives the
+    minimum-norm q.
+    """
+    W = np.asarray(W, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    if W.ndim != 3 or W.shape[1] != 3 or u.shape[-2:] != W.shape[:2] or u.ndim not in (2, 3):
+        raise ValueError(f"W {W.shape} and u {u.shape}: expected (n, 3, r) and (n, 3) or (F, n, 3)")
+    A, B = W.reshape(-1, W.shape[2]), u.reshape(-1, 3 * W.shape[0]).T  # (3n, r), (3n, F)
+    if mass is not None:
+        root = np.sqrt(np.repeat(np.asarray(mass, dtype=np.float64), 3))
+        A, B = A * root[:, None], B * root[:, None]
+    q = np.linalg.lstsq(A, B, rcond=None)[0].T  # (F, r)
+    return q[0] if u.ndim == 2 else q
 
 
 def full_basis(n: int) -> np.ndarray:

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 import torch
 
+from solvers.baselines import project
 from solvers.licrom.network import N_AFFINE, affine_basis
 from solvers.licrom.train import (
-    CheckpointError, TrainingData, encode, evaluate_basis, load_checkpoint, project, projection_error,
+    CheckpointError, TrainingData, encode, evaluate_basis, load_checkpoint, projection_error,
     reconstruction_error, train, train_from_trajectories,
 )
 from solvers.trajectory import Trajectory
@@ -113,6 +114,7 @@ def test_project_recovers_coefficients_with_and_without_mass():
     u = np.einsum("ncj,j->nc", W, q)
     np.testing.assert_allclose(project(W, u), q, rtol=1e-10)
     np.testing.assert_allclose(project(W, u, mass=rng.uniform(0.5, 2.0, size=50)), q, rtol=1e-10)
+    np.testing.assert_allclose(project(W, np.stack([u, -2.0 * u])), np.stack([q, -2.0 * q]), rtol=1e-10)  # frames
     u_noisy = u + 0.1 * rng.normal(size=u.shape)
     heavy = np.where(np.arange(50) < 10, 1e6, 1.0)  # the heavy points dominate the weighted fit
     q_heavy = project(W, u_noisy, mass=heavy)

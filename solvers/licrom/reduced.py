@@ -44,6 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve, eigh
 
+from solvers.baselines import project
 from solvers.full.solver import ARMIJO_SLACK
 from solvers.licrom import kernels as K
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
@@ -137,8 +138,7 @@ class ReducedModel:
 
     def project(self, u: np.ndarray) -> np.ndarray:
         """Mass-weighted least-squares coordinates of a vertex field u (n, 3): argmin_q |W q - u|_M, (r,)."""
-        Wf = self.W.reshape(-1, self.r)
-        return cho_solve(self.M_cho, Wf.T @ (np.repeat(self.model.mass, 3) * u.ravel()))
+        return project(self.W, u, self.model.mass)
 
     def point_positions(self, q: np.ndarray) -> np.ndarray:
         """Contact sample positions X_p + W_p q, (p, 3) [m]."""

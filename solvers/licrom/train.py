@@ -35,6 +35,7 @@ from tqdm import tqdm
 
 from scenarios.atomic import atomic_open
 from scenarios.meshes import bbox_diagonal
+from solvers.baselines import project
 from solvers.licrom.network import N_AFFINE, NeuralField, PointNetEncoder, fit_affine
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices
@@ -392,22 +393,6 @@ def _encode_frames(
     return torch.cat([q_affine, q], dim=1) if ckpt.arch["affine"] else q
 
 
-def project(W: np.ndarray, u: np.ndarray, mass: np.ndarray | None = None) -> np.ndarray:
-    """Least-squares coordinates q (r,) of u (n, 3) [m] in the basis W (n, 3, r): argmin sum_i m_i |W_i q - u_i|^2.
-
-    mass: (n,) non-negative weights (default: uniform).
-    """
-    W = np.asarray(W, dtype=np.float64)
-    u = np.asarray(u, dtype=np.float64)
-    if W.ndim != 3 or W.shape[1] != 3 or u.shape != W.shape[:2]:
-        raise ValueError(f"W {W.shape} and u {u.shape}: expected (n, 3, r) and (n, 3)")
-    A, b = W.reshape(-1, W.shape[2]), u.reshape(-1)
-    if mass is not None:
-        root = np.sqrt(np.repeat(np.asarray(mass, dtype=np.float64), 3))
-        A, b = A * root[:, None], b * root
-    return np.linalg.lstsq(A, b, rcond=None)[0]
-
-
 def reconstruction_error(ckpt: Checkpoint, data: TrainingData) -> float:
     """Relative RMS error sqrt(sum |W q_enc - u|^2 / sum |u|^2) over all frames and points of `data`.
 
@@ -427,12 +412,9 @@ def projection_error(ckpt: Checkpoint, data: TrainingData) -> float:
     This is the error a perfect encoder would leave; the online solver never uses the encoder.
     """
     W = evaluate_basis(ckpt, data.X.double().numpy())
-    root = np.sqrt(np.repeat(data.weights.double().numpy(), 3))
-    A = W.reshape(-1, W.shape[2]) * root[:, None]
-    B = data.u.double().numpy().reshape(data.n_frames, -1).T * root[:, None]  # (3n, F)
-    q = np.linalg.lstsq(A, B, rcond=None)[0]
-    u = data.u.double().numpy().reshape(data.n_frames, -1).T
-    return float(np.linalg.norm(W.reshape(-1, W.shape[2]) @ q - u) / np.linalg.norm(u))
+    u = data.u.double().numpy()
+    q = project(W, u, data.weights.double().numpy())  # (F, r)
+    return float(np.linalg.norm(np.einsum("ncr,fr->fnc", W, q) - u) / np.linalg.norm(u))
 
 
 def train_from_trajectories(
