@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import difflib
 import json
 import re
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
@@ -27,6 +30,23 @@ class ScenarioError(ValueError):
         self.value = value
         self.reason = reason
         super().__init__(f"{field} = {value!r}: {reason}")
+
+
+def checked_table(value: object, field: str, allowed: Sequence[str] | None, top: str) -> Mapping[str, Any]:
+    """`value` as a TOML table, raising `ScenarioError` otherwise.
+
+    field: its dotted path ("" for the document itself, then named `top` in the error, e.g. "<suite>").
+    allowed: the keys it may have (None: any); an unknown key is named, with the closest allowed key as a hint.
+    """
+    if not isinstance(value, Mapping):
+        raise ScenarioError(field or top, value, "expected a table")
+    for key in value:
+        if allowed is not None and key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ScenarioError(key_path(field, key), value[key],
+                                f"unknown key{hint} (expected one of {list(allowed)})")
+    return value
 
 
 class MeshError(ScenarioError):

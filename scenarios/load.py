@@ -58,7 +58,6 @@ scenario built or modified in code. `scenario_hash` hashes what is simulated, no
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import math
@@ -71,7 +70,7 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
-from scenarios.errors import ScenarioError, key_path
+from scenarios.errors import ScenarioError, checked_table
 from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec, Vec3
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
@@ -388,16 +387,8 @@ def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact) 
 
 
 def _table(value: object, field: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
-    """`value` as a table whose keys are all in `allowed`; an unknown key is named with a suggestion."""
-    if not isinstance(value, Mapping):
-        raise ScenarioError(field or "<scenario>", value, "expected a table")
-    for key in value:
-        if key not in allowed:
-            where = key_path(field, key)
-            close = difflib.get_close_matches(str(key), allowed, n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            raise ScenarioError(where, value[key], f"unknown key{hint} (expected one of {list(allowed)})")
-    return value
+    """`value` as a table whose keys are all in `allowed` (`checked_table`; the document is "<scenario>")."""
+    return checked_table(value, field, allowed, "<scenario>")
 
 
 def _number(value: object, field: str, *, gt: float | None = None, ge: float | None = None,

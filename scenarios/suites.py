@@ -52,7 +52,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
-from scenarios.errors import ScenarioError, key_path
+from scenarios.errors import ScenarioError, checked_table
 from scenarios.load import NAME_PART, read_toml, scenario_from_dict
 from scenarios.model import Scenario
 
@@ -340,14 +340,8 @@ def _merged(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _table(value: object, field: str, allowed: Sequence[str] | None) -> Mapping[str, Any]:
-    """`value` as a table (`field` "" for the top level); with `allowed`, an unknown key is an error naming it."""
-    if not isinstance(value, Mapping):
-        raise ScenarioError(field or "<suite>", value, "expected a table")
-    for key in value:
-        if allowed is not None and key not in allowed:
-            where = key_path(field, key)
-            raise ScenarioError(where, value[key], f"unknown key (expected one of {list(allowed)})")
-    return value
+    """`value` as a table whose keys are in `allowed` if given (`checked_table`; the document is "<suite>")."""
+    return checked_table(value, field, allowed, "<suite>")
 
 
 def _array(value: object, field: str) -> list[Any]:
