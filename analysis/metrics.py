@@ -320,7 +320,8 @@ def _edge_matrices(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
 def _body_masses(traj: Trajectory, material: Material, masses: np.ndarray | None) -> np.ndarray:
     """Vertex masses (n,) [kg]: the given ones, else the lumped masses of the material's density."""
     if masses is None:
-        return lumped_mass(shape_matrices(traj.X, traj.tets)[1], traj.tets, traj.X.shape[0], material.density)
+        volumes = np.abs(shape_matrices(traj.X, traj.tets)[1])  # |V_e|: a trajectory's tets may be unoriented
+        return lumped_mass(volumes, traj.tets, traj.X.shape[0], material.density)
     return _masses(traj.X.shape[0], masses)
 
 

@@ -1,6 +1,7 @@
 """Linear-subspace baselines for the reduced solver: bases W (n, 3, r) with u(X_i) = W[i] q (DESIGN.md section 7).
 
-- `affine_basis`: the 12 exact affine fields (every rigid motion and every homogeneous strain), mesh-free;
+- `affine_fields` / `affine_basis`: the 12 exact affine fields (every rigid motion and every homogeneous strain),
+  mesh-free; `affine_fields` is also the affine part of LiCROM's neural field (torch);
 - `pod_basis`: proper orthogonal decomposition of training displacements, bound to the training mesh;
 - `full_basis`: the complete per-vertex basis (the reduced solver then equals the full-space one);
 - `project`: the coordinates of displacements in a basis (mass-weighted least squares).
@@ -8,7 +9,11 @@
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
+
+ArrayT = TypeVar("ArrayT")  # a numpy array or a torch tensor
 
 
 def standardised_positions(X: np.ndarray) -> np.ndarray:
@@ -17,19 +22,29 @@ def standardised_positions(X: np.ndarray) -> np.ndarray:
     return (X - X.mean(axis=0)) / np.where(std > 0.0, std, 1.0)
 
 
-def affine_basis(X: np.ndarray) -> np.ndarray:
-    """The 12 affine displacement fields at rest positions X (n, 3): W (n, 3, 12) [m per unit q].
+#: Number of affine fields: 3 translations and 9 linear maps.
+N_AFFINE = 12
 
-    Columns 0..2 are the translations e_c; column 3 + 3 c + j is e_c Xhat_j (Xhat = standardised X), so
-    W q = t + A Xhat with t = q[:3], A = q[3:].reshape(3, 3) [m].
+
+def affine_fields(Xhat: ArrayT) -> ArrayT:
+    """The 12 affine fields A (n, 3, 12) at standardised positions Xhat (n, 3), a numpy array or a torch tensor
+    (the result is of the same kind and dtype; differentiable in torch).
+
+    Column 4 c + k is e_c phi_k(Xhat), phi = [1, Xhat_x, Xhat_y, Xhat_z], so A q is the displacement (L - I) X + b
+    of any affine map X -> L X + b (every rigid motion included), with q in metres.
     """
-    Xh = standardised_positions(X)
-    n = X.shape[0]
-    W = np.zeros((n, 3, 12))
+    n = Xhat.shape[0]
+    A = Xhat.new_zeros((n, 3, N_AFFINE)) if hasattr(Xhat, "new_zeros") else np.zeros((n, 3, N_AFFINE), Xhat.dtype)
     for c in range(3):
-        W[:, c, c] = 1.0
-        W[:, c, 3 + 3 * c: 6 + 3 * c] = Xh
-    return W
+        A[:, c, 4 * c] = 1.0
+        A[:, c, 4 * c + 1:4 * c + 4] = Xhat
+    return A
+
+
+def affine_basis(X: np.ndarray) -> np.ndarray:
+    """The 12 affine displacement fields at rest positions X (n, 3): W (n, 3, 12) [m per unit q], the
+    `affine_fields` of the standardised positions (`standardised_positions`)."""
+    return affine_fields(standardised_positions(np.asarray(X, dtype=np.float64)))
 
 
 def project(W: np.ndarray, u: np.ndarray, mass: np.ndarray | None = None) -> np.ndarray:

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from solvers.baselines import project
-from solvers.licrom.network import N_AFFINE, affine_basis
+from solvers.baselines import N_AFFINE, affine_fields, project
 from solvers.licrom.train import (
     CheckpointError, TrainingData, encode, evaluate_basis, load_checkpoint, projection_error,
     reconstruction_error, train, train_from_trajectories,
@@ -177,7 +176,7 @@ def test_affine_columns_are_exact_and_neural_columns_orthogonal(modes_data):
     X = data.X.double().numpy()
     W = evaluate_basis(model, X)
     Xhat = (X - np.array(model.norm["X_mean"])) / model.norm["X_scale"]
-    np.testing.assert_allclose(W[:, :, :N_AFFINE], affine_basis(torch.from_numpy(Xhat)).numpy(), atol=1e-12)
+    np.testing.assert_allclose(W[:, :, :N_AFFINE], affine_fields(torch.from_numpy(Xhat)).numpy(), atol=1e-12)
     w = data.weights.double().numpy()
     cross = np.einsum("n,nci,ncj->ij", w, W[:, :, :N_AFFINE], W[:, :, N_AFFINE:])  # reference = all points
     assert np.abs(cross).max() < 1e-9 * np.abs(W[:, :, N_AFFINE:]).max() * w.sum()
@@ -226,3 +225,16 @@ def test_train_from_trajectories_writes_model_and_loss(tmp_path):
     assert [float(line.split(",")[1]) for line in lines[1:]] == ckpt.loss_history
     pytest.importorskip("matplotlib")
     assert (tmp_path / "out" / "loss.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_affine_fields_are_one_function_for_numpy_and_torch():
+    Xhat = np.random.default_rng(3).standard_normal((7, 3))
+    A = affine_fields(Xhat)
+    t = torch.from_numpy(Xhat).requires_grad_(True)
+    A_torch = affine_fields(t)
+    np.testing.assert_array_equal(A, A_torch.detach().numpy())
+    q = np.arange(1.0, 13.0)
+    L = q.reshape(3, 4)  # row c: (b_c, L_c0, L_c1, L_c2)
+    np.testing.assert_allclose(A @ q, L[:, 0] + Xhat @ L[:, 1:].T, rtol=1e-14)  # the affine map of Xhat
+    A_torch.sum().backward()  # differentiable in torch: each Xhat_j stands in 3 columns (one per component c)
+    np.testing.assert_array_equal(t.grad.numpy(), np.full((7, 3), 3.0))

@@ -5,7 +5,7 @@ Conventions (shared with `solvers.licrom.train` and the online solver):
   isotropic scale (so the shape keeps its aspect ratio and a rotation of X is a rotation of Xhat);
 - the basis W is dimensionless and the latent coordinates q carry metres: u [m] = W(X) q;
 - `r` is always the total number of basis columns. With `affine=True` the first 12 columns are the exact affine
-  fields `affine_basis(Xhat)` and the network supplies the remaining r - 12 (so r >= 13).
+  fields `solvers.baselines.affine_fields(Xhat)` and the network supplies the remaining r - 12 (so r >= 13).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-N_AFFINE = 12
-"""Columns of the affine part: for each displacement component c, e_c * [1, Xhat_x, Xhat_y, Xhat_z]."""
+from solvers.baselines import N_AFFINE, affine_fields
+
 
 
 class PointNetEncoder(nn.Module):
@@ -49,25 +49,12 @@ def affine_features(Xhat: torch.Tensor) -> torch.Tensor:
     return torch.cat([torch.ones_like(Xhat[:, :1]), Xhat], dim=1)
 
 
-def affine_basis(Xhat: torch.Tensor) -> torch.Tensor:
-    """The 12 affine columns A (n, 3, 12) at standardised positions Xhat (n, 3).
-
-    Column 4c + k is e_c * phi_k(Xhat), phi = [1, Xhat_x, Xhat_y, Xhat_z], so A q is the displacement
-    (L - I) X + b of any affine map X -> L X + b (every rigid motion included), with q in metres.
-    """
-    phi = affine_features(Xhat)
-    A = Xhat.new_zeros(Xhat.shape[0], 3, N_AFFINE)
-    for c in range(3):
-        A[:, c, 4 * c:4 * c + 4] = phi
-    return A
-
-
 def fit_affine(Xhat: torch.Tensor, u: torch.Tensor, weights: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Weighted least-squares affine part of displacement frames.
 
     Xhat: (n, 3) standardised rest positions; u: (F, n, 3) displacements [m]; weights: (n,) point weights
     (e.g. lumped masses), positive somewhere on at least 4 non-coplanar points.
-    Returns q_affine (F, 12) [m], coefficients of `affine_basis`, and the residual u - A q_affine (F, n, 3),
+    Returns q_affine (F, 12) [m], coefficients of `affine_fields`, and the residual u - A q_affine (F, n, 3),
     which is orthogonal to every affine field in the weighted inner product sum_i w_i a_i . v_i.
     """
     phi = affine_features(Xhat)  # (n, 4)
@@ -139,7 +126,7 @@ class NeuralField(nn.Module):
         if not self.affine:
             return columns
         columns = columns - torch.einsum("nk,ckj->ncj", affine_features(Xhat), self._affine_coefficients())
-        return torch.cat([affine_basis(Xhat), columns], dim=2)
+        return torch.cat([affine_fields(Xhat), columns], dim=2)
 
     def _affine_coefficients(self) -> torch.Tensor:
         """C (3, 4, n_neural): weighted least-squares affine part of the network columns on the reference points."""

@@ -35,8 +35,8 @@ from tqdm import tqdm
 
 from scenarios.atomic import atomic_open
 from scenarios.meshes import bbox_diagonal
-from solvers.baselines import project
-from solvers.licrom.network import N_AFFINE, NeuralField, PointNetEncoder, fit_affine
+from solvers.baselines import N_AFFINE, project
+from solvers.licrom.network import NeuralField, PointNetEncoder, fit_affine
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices
 from solvers.trajectory import Trajectory
@@ -124,8 +124,9 @@ class TrainingData:
                 )
         u = np.concatenate([np.asarray(t.x, dtype=np.float64) - X0 for t in trajs], axis=0)
         tets = np.asarray(trajs[0].tets)
-        volumes = lumped_mass(shape_matrices(X0, tets)[1], tets, X0.shape[0], 1.0) if tets.size else None
-        return cls.from_arrays(X0, u, volumes)  # lumped vertex volumes: the lumped masses of unit density
+        # lumped vertex volumes: the lumped masses of unit density (|V_e|: the tets of a trajectory may be unoriented)
+        volumes = lumped_mass(np.abs(shape_matrices(X0, tets)[1]), tets, X0.shape[0], 1.0) if tets.size else None
+        return cls.from_arrays(X0, u, volumes)
 
 
 @dataclass
