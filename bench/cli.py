@@ -121,7 +121,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from bench.runner import Task, run_tasks
     from bench.store import RunStore
     from scenarios.suites import load_suite
-    from solvers.licrom.train import train_from_trajectories
+    from solvers.licrom.train import TrainSettings, train_from_trajectories
 
     suite = load_suite(args.suite)
     members = [m for m in suite.train if args.mesh in (None, m.scenario.mesh.name)]
@@ -134,10 +134,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     store = RunStore(Path(args.store) if args.store else out / "runs")
     tasks = [Task(m.scenario, "full", {}) for m in members]
     run_tasks(tasks, store, args.device if args.data_device else "cpu", args.jobs, "process", "training data")
-    path = train_from_trajectories([store.folder(t.key) / "trajectory.npz" for t in tasks], out, args.r,
-                                   args.epochs, affine=args.affine, device=args.device, seed=args.seed,
-                                   points=args.points, identity={"suite": suite.name, "mesh": shapes.pop(),
-                                                                 "scenarios": [t.key for t in tasks]})
+    settings = TrainSettings(r=args.r, epochs=args.epochs, affine=args.affine, seed=args.seed, points=args.points)
+    path = train_from_trajectories([store.folder(t.key) / "trajectory.npz" for t in tasks], out, settings,
+                                   args.device, identity={"suite": suite.name, "mesh": shapes.pop(),
+                                                          "scenarios": [t.key for t in tasks]})
     print(f"checkpoint: {path}")
     return 0
 

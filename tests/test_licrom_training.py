@@ -9,7 +9,7 @@ import torch
 from solvers.baselines import N_AFFINE, affine_fields, project
 from solvers.licrom.train import (
     CheckpointError, TrainingData, encode, evaluate_basis, load_checkpoint, projection_error,
-    reconstruction_error, train, train_from_trajectories,
+    TrainSettings, reconstruction_error, train, train_from_trajectories,
 )
 from solvers.trajectory import Trajectory
 
@@ -66,7 +66,7 @@ def modes_data() -> TrainingData:
 
 
 def train_modes(data: TrainingData, seed: int = 0):
-    return train(data, r=6, epochs=60, seed=seed, points=64, progress=False)
+    return train(data, TrainSettings(r=6, epochs=60, seed=seed, points=64), progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +83,7 @@ def test_training_reduces_loss_and_reconstructs(modes_data, modes_model):
 
 
 def test_untrained_model_fails_the_accuracy_threshold(modes_data):
-    model = train(modes_data, r=6, epochs=1, points=16, batch=32, progress=False)
+    model = train(modes_data, TrainSettings(r=6, epochs=1, points=16, batch=32), progress=False)
     assert reconstruction_error(model, modes_data) > MAX_RECONSTRUCTION_ERROR
 
 
@@ -163,16 +163,16 @@ def test_affine_variant_reproduces_rigid_motion_exactly():
     X = sample_box(150, seed=5)
     x = np.stack([X @ rotation(rng).T + rng.normal(scale=0.5, size=3) for _ in range(24)])
     data = TrainingData.from_arrays(X, x - X)
-    model = train(data, r=14, epochs=2, affine=True, points=32, progress=False)
+    model = train(data, TrainSettings(r=14, epochs=2, affine=True, points=32), progress=False)
     assert reconstruction_error(model, data) < 1e-3
-    plain = train(data, r=14, epochs=2, points=32, progress=False)
+    plain = train(data, TrainSettings(r=14, epochs=2, points=32), progress=False)
     assert reconstruction_error(plain, data) > 0.1  # the same budget without affine columns does not
 
 
 def test_affine_columns_are_exact_and_neural_columns_orthogonal(modes_data):
     weights = np.random.default_rng(6).uniform(0.5, 1.5, size=modes_data.n_points)
     data = TrainingData.from_arrays(modes_data.X.double().numpy(), modes_data.u.double().numpy(), weights)
-    model = train(data, r=15, epochs=2, affine=True, points=32, progress=False)
+    model = train(data, TrainSettings(r=15, epochs=2, affine=True, points=32), progress=False)
     X = data.X.double().numpy()
     W = evaluate_basis(model, X)
     Xhat = (X - np.array(model.norm["X_mean"])) / model.norm["X_scale"]
@@ -186,11 +186,12 @@ def test_affine_columns_are_exact_and_neural_columns_orthogonal(modes_data):
 
 def test_invalid_training_arguments_are_rejected(modes_data):
     with pytest.raises(ValueError, match="r >= 13"):
-        train(modes_data, r=12, epochs=1, affine=True, progress=False)
+        TrainSettings(r=12, epochs=1, affine=True)
     with pytest.raises(ValueError, match="schedule"):
-        train(modes_data, r=4, epochs=1, schedule="linear", progress=False)
+        TrainSettings(r=4, epochs=1, schedule="linear")
     with pytest.raises(ValueError, match="all zero"):
-        train(TrainingData.from_arrays(modes_data.X.numpy(), np.zeros((2, 200, 3))), r=4, epochs=1, progress=False)
+        train(TrainingData.from_arrays(modes_data.X.numpy(), np.zeros((2, 200, 3))), TrainSettings(r=4, epochs=1),
+              progress=False)
 
 
 def test_training_data_rejects_different_rest_meshes():
@@ -214,8 +215,8 @@ def test_train_from_trajectories_writes_model_and_loss(tmp_path):
     path = Trajectory(t=np.arange(6.0), x=X + u, X=X, tets=tets, surface=np.zeros((0, 3), int)).save(
         tmp_path / "run.npz")
     identity = {"suite": "synthetic", "scenario_hashes": ["abc"], "bbox_diagonal": np.float64(1.16)}
-    model = train_from_trajectories([str(path)], tmp_path / "out", r=3, epochs=3, points=16, identity=identity,
-                                    schedule="cosine", progress=False)
+    model = train_from_trajectories([str(path)], tmp_path / "out", TrainSettings(r=3, epochs=3, points=16,
+                                    schedule="cosine"), identity=identity, progress=False)
     assert model == tmp_path / "out" / "model.pt"
     ckpt = load_checkpoint(model, expected_r=3)
     assert ckpt.config["schedule"] == "cosine" and ckpt.config["sources"] == ["run.npz"]

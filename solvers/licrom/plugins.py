@@ -136,7 +136,7 @@ def prepare_licrom(shape: str, trajectories: list[Path], params: dict, models_di
                    suite: str) -> dict:
     """Train the neural field of one shape on its training trajectories (cached), and, for an optimised
     cubature, select it on the training mesh."""
-    from solvers.licrom.train import evaluate_basis, load_checkpoint, train_from_trajectories
+    from solvers.licrom.train import TrainSettings, evaluate_basis, load_checkpoint, train_from_trajectories
 
     settings = {k: params.get(k, d) for k, d in (("r", 20), ("epochs", 100), ("affine", False), ("seed", 0),
                                                  ("points", 512))}
@@ -144,10 +144,8 @@ def prepare_licrom(shape: str, trajectories: list[Path], params: dict, models_di
     folder = Path(models_dir) / key
     ckpt_path = folder / "model.pt"
     if not ckpt_path.is_file():
-        train_from_trajectories([str(p) for p in trajectories], folder, settings["r"], settings["epochs"],
-                                affine=settings["affine"], device=device, seed=settings["seed"],
-                                points=settings["points"], identity={"suite": suite, "shape": shape},
-                                progress=True)
+        train_from_trajectories([str(p) for p in trajectories], folder, TrainSettings(**settings), device,
+                                identity={"suite": suite, "shape": shape})
     out = params | {"shape": shape, "checkpoint": str(ckpt_path)}
     spec = str(params.get("cubature", "all"))
     if spec.startswith("optimized:"):

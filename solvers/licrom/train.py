@@ -229,44 +229,51 @@ def load_checkpoint(path: str | os.PathLike, expected_r: int | None = None) -> C
     return ckpt
 
 
-def train(
-    data: TrainingData,
-    r: int,
-    epochs: int,
-    affine: bool = False,
-    device: str = "cpu",
-    seed: int = 0,
-    batch: int = 16,
-    points: int = 1024,
-    lr: float = 1e-3,
-    progress: bool = True,
-    *,
-    width: int = 60,
-    depth: int = 5,
-    schedule: str = "constant",
-    n_ref: int = 4096,
-    identity: dict | None = None,
-) -> Checkpoint:
-    """Train encoder and neural field on `data`; returns the checkpoint (not yet saved).
+@dataclass(frozen=True)
+class TrainSettings:
+    """How a LiCROM model is trained (validated on construction).
 
     r: total basis columns (affine: r >= 13, the network learns r - 12); epochs: passes over all frames;
-    device: "cpu" or "cuda"; seed: seeds python, numpy and torch (init, shuffling, point subsampling);
-    batch: frames per step; points: points subsampled per frame (all if the frame has fewer); lr: Adam rate;
-    progress: tqdm bar over epochs; width, depth: field MLP; schedule: "constant" or "cosine";
-    n_ref: reference points of the affine orthogonalisation (all points if fewer; a seeded subset otherwise);
-    identity: training identity stored in the checkpoint.
-    Deterministic algorithms are enabled during training, so a seed reproduces a run on the same device and
-    thread count.
+    affine: prepend the 12 exact affine columns; seed: seeds python, numpy and torch (init, shuffling, point
+    subsampling); batch: frames per step; points: points subsampled per frame (all if the frame has fewer);
+    lr: Adam rate; width, depth: field MLP; schedule: "constant" or "cosine"; n_ref: reference points of the
+    affine orthogonalisation (all points if fewer; a seeded subset otherwise).
     """
-    if epochs < 1 or batch < 1 or points < 1 or n_ref < 4 or lr <= 0:
-        raise ValueError(f"need epochs, batch, points >= 1, n_ref >= 4, lr > 0 (got {epochs}, {batch}, "
-                         f"{points}, {n_ref}, {lr})")
-    if affine and r <= N_AFFINE:
-        raise ValueError(f"r = {r}: the affine variant needs r >= {N_AFFINE + 1} (r counts the 12 affine columns)")
-    if r < 1:
-        raise ValueError(f"r = {r}: need r >= 1")
-    if schedule not in SCHEDULES:
-        raise ValueError(f"schedule = {schedule!r}: expected one of {SCHEDULES}")
+
+    r: int
+    epochs: int
+    affine: bool = False
+    seed: int = 0
+    batch: int = 16
+    points: int = 1024
+    lr: float = 1e-3
+    width: int = 60
+    depth: int = 5
+    schedule: str = "constant"
+    n_ref: int = 4096
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.batch < 1 or self.points < 1 or self.n_ref < 4 or self.lr <= 0:
+            raise ValueError(f"need epochs, batch, points >= 1, n_ref >= 4, lr > 0 (got {self.epochs}, {self.batch}, "
+                             f"{self.points}, {self.n_ref}, {self.lr})")
+        if self.affine and self.r <= N_AFFINE:
+            raise ValueError(f"r = {self.r}: the affine variant needs r >= {N_AFFINE + 1} "
+                             "(r counts the 12 affine columns)")
+        if self.r < 1:
+            raise ValueError(f"r = {self.r}: need r >= 1")
+        if self.schedule not in SCHEDULES:
+            raise ValueError(f"schedule = {self.schedule!r}: expected one of {SCHEDULES}")
+
+
+def train(data: TrainingData, settings: TrainSettings, device: str = "cpu", progress: bool = True,
+          identity: dict | None = None) -> Checkpoint:
+    """Train encoder and neural field on `data` with `settings`; returns the checkpoint (not yet saved).
+
+    device: "cpu" or "cuda"; progress: tqdm bar over epochs; identity: training identity stored in the
+    checkpoint. Deterministic algorithms are enabled during training, so a seed reproduces a run on the same
+    device and thread count.
+    """
+    st = settings
     dev = torch.device(device)
     if dev.type == "cuda" and not torch.cuda.is_available():
         raise ValueError("device = 'cuda' but torch sees no CUDA device")
@@ -278,37 +285,37 @@ def train(
     if u_scale == 0.0:
         raise ValueError("the training displacements are all zero: nothing to learn")
     Xhat64 = (X64 - X_mean) / X_scale
-    target = fit_affine(Xhat64, u64, w64)[1] if affine else u64
+    target = fit_affine(Xhat64, u64, w64)[1] if st.affine else u64
     fit_scale = max(float(torch.sqrt((target ** 2).mean())), _FIT_SCALE_FLOOR * u_scale)
 
-    _seed_everything(seed)
-    generator = torch.Generator().manual_seed(seed)
-    ref = (torch.randperm(data.n_points, generator=generator)[:n_ref].sort().values if affine
+    _seed_everything(st.seed)
+    generator = torch.Generator().manual_seed(st.seed)
+    ref = (torch.randperm(data.n_points, generator=generator)[:st.n_ref].sort().values if st.affine
            else torch.zeros(0, dtype=torch.long))
     field_net = NeuralField(
-        r, width, depth, affine, X_mean=X_mean.float(), X_scale=X_scale,
+        st.r, st.width, st.depth, st.affine, X_mean=X_mean.float(), X_scale=X_scale,
         ref_X=data.X[ref], ref_w=data.weights[ref],
     ).to(dev)
     encoder = PointNetEncoder(field_net.n_neural).to(dev)
-    optimizer = torch.optim.Adam([*encoder.parameters(), *field_net.parameters()], lr=lr)
-    scheduler = (torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=epochs, eta_min=lr / 100)
-                 if schedule == "cosine" else None)
+    optimizer = torch.optim.Adam([*encoder.parameters(), *field_net.parameters()], lr=st.lr)
+    scheduler = (torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=st.epochs, eta_min=st.lr / 100)
+                 if st.schedule == "cosine" else None)
 
     X_dev = data.X.to(dev)
     Xhat_dev = Xhat64.float().to(dev)
     target_dev = (target / fit_scale).float().to(dev)
-    n_points = min(points, data.n_points)
+    n_points = min(st.points, data.n_points)
     history: list[float] = []
     start = time.perf_counter()
     with _deterministic_algorithms():
         encoder.train()
-        bar = tqdm(range(epochs), desc=f"LiCROM r={r}{' affine' if affine else ''}", unit="epoch",
+        bar = tqdm(range(st.epochs), desc=f"LiCROM r={st.r}{' affine' if st.affine else ''}", unit="epoch",
                    disable=not progress)
         for _ in bar:
             order = torch.randperm(data.n_frames, generator=generator)
             total = 0.0
-            for first in range(0, data.n_frames, batch):
-                frames = order[first:first + batch]
+            for first in range(0, data.n_frames, st.batch):
+                frames = order[first:first + st.batch]
                 subset = torch.rand(len(frames), data.n_points, generator=generator).argsort(dim=1)[:, :n_points]
                 loss = _batch_loss(encoder, field_net, X_dev, Xhat_dev, target_dev, frames.to(dev), subset.to(dev))
                 optimizer.zero_grad(set_to_none=True)
@@ -322,11 +329,11 @@ def train(
     train_seconds = time.perf_counter() - start
 
     return Checkpoint(
-        arch={"r": r, "width": width, "depth": depth, "affine": affine, "n_ref": int(ref.numel())},
+        arch={"r": st.r, "width": st.width, "depth": st.depth, "affine": st.affine, "n_ref": int(ref.numel())},
         norm={"X_mean": X_mean.tolist(), "X_scale": X_scale, "u_scale": u_scale, "fit_scale": fit_scale},
         encoder_state=_cpu_state(encoder), field_state=_cpu_state(field_net),
-        identity=_plain(identity or {}), loss_history=history, seed=seed, train_seconds=train_seconds,
-        config={"epochs": epochs, "batch": batch, "points": points, "lr": lr, "schedule": schedule,
+        identity=_plain(identity or {}), loss_history=history, seed=st.seed, train_seconds=train_seconds,
+        config={"epochs": st.epochs, "batch": st.batch, "points": st.points, "lr": st.lr, "schedule": st.schedule,
                 "device": str(dev), "n_frames": data.n_frames, "n_points": data.n_points},
         versions=_versions(),
     )
@@ -418,29 +425,15 @@ def projection_error(ckpt: Checkpoint, data: TrainingData) -> float:
     return float(np.linalg.norm(np.einsum("ncr,fr->fnc", W, q) - u) / np.linalg.norm(u))
 
 
-def train_from_trajectories(
-    paths: Sequence[str | os.PathLike],
-    out: str | os.PathLike,
-    r: int,
-    epochs: int,
-    affine: bool = False,
-    device: str = "cpu",
-    seed: int = 0,
-    points: int = 1024,
-    identity: dict | None = None,
-    *,
-    batch: int = 16,
-    lr: float = 1e-3,
-    schedule: str = "constant",
-    progress: bool = True,
-) -> Path:
-    """Train on the trajectory files `paths` (.npz); write out/model.pt, out/loss.csv, out/loss.png.
+def train_from_trajectories(paths: Sequence[str | os.PathLike], out: str | os.PathLike, settings: TrainSettings,
+                            device: str = "cpu", progress: bool = True, identity: dict | None = None) -> Path:
+    """Train on the trajectory files `paths` (.npz) as `train` does; write out/model.pt, out/loss.csv,
+    out/loss.png.
 
     loss.png is skipped (with a log message) when matplotlib is not installed. Returns the path of model.pt.
     """
     data = TrainingData.from_trajectories([Trajectory.load(p) for p in paths])
-    ckpt = train(data, r, epochs, affine, device, seed, batch, points, lr, progress,
-                 schedule=schedule, identity=identity)
+    ckpt = train(data, settings, device, progress, identity)
     ckpt.config["sources"] = [Path(p).name for p in paths]
     out = Path(out)
     model = ckpt.save(out / "model.pt")
