@@ -1,6 +1,6 @@
 """The results table: one row per scenario x solver variant, written as `results.csv`.
 
-Column order (DESIGN.md section 10):
+Column order (docs/design.md, "Metrics"):
 1. identity: `IDENTITY_COLUMNS` present in the rows, then solver parameters (keys starting with `param_`, in the
    order first seen);
 2. metrics: `METRIC_COLUMNS` present in the rows, then any other key (in the order first seen);

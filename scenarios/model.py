@@ -54,7 +54,7 @@ class Plane:
 
 @dataclass(frozen=True)
 class Contact:
-    """Contact law and parameters, all per unit contact area (DESIGN.md section 5).
+    """Contact law and parameters, all per unit contact area (docs/design.md, "Contact with the plane").
 
     law: `penalty` (the paper's soft contact) or `barrier` (IPC log barrier).
     stiffness: k_e [Pa/m], normal force per area per metre of penetration (penalty law); None (TOML "auto", the

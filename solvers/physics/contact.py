@@ -1,4 +1,5 @@
-"""Plane contact per unit surface area (DESIGN.md section 5), evaluated at surface points with area weights.
+"""Plane contact per unit surface area (docs/design.md, "Contact with the plane"), evaluated at surface points
+with area weights.
 
 Plane: phi(x) = n . x - d (n unit). Penalty law (the paper's, from warp's soft contact): penetration
 c = max(0, -phi), normal pressure k_e c + k_d max(0, -v.n), energy density 1/2 k_e c^2; the damping part is
