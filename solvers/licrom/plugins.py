@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solvers.baselines import affine_basis, pod_basis
+from solvers.baselines import affine_basis, pod_basis, project
 from solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
 from solvers.licrom.reduced import ReducedSolver
 from solvers.model import Model
@@ -37,11 +37,7 @@ def _key(prefix: str, payload: dict) -> str:
 def _training_q(W: np.ndarray, mass: np.ndarray, trajectories: list[Path], limit: int = 200) -> np.ndarray:
     """Latent training states: mass-weighted projections of up to `limit` training frames onto W, (S, r)."""
     frames = np.concatenate([(lambda t: t.x - t.X)(Trajectory.load(p)) for p in trajectories])
-    frames = frames[np.linspace(0, len(frames) - 1, min(limit, len(frames))).astype(int)]
-    Wf = W.reshape(-1, W.shape[2])
-    m3 = np.repeat(mass, 3)
-    Mr = Wf.T @ (m3[:, None] * Wf)
-    return np.linalg.solve(Mr, Wf.T @ (m3[:, None] * frames.reshape(len(frames), -1).T)).T
+    return project(W, frames[np.linspace(0, len(frames) - 1, min(limit, len(frames))).astype(int)], mass)
 
 
 def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | None) -> tuple[Cubature, str]:
