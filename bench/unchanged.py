@@ -7,10 +7,11 @@ working tree first and compare those.
 Rows are matched by their identity columns (suite, scenario, split, mesh, train_mesh, solver, variant). Every
 other column is compared except timing and provenance (`IGNORED_COLUMNS`, `*_version`): numbers to a relative
 tolerance, 1e-9 for the rows of the exact solvers (`--exact`, default the full-space solver) and 1e-6 for the
-others (reduced solvers: their training and cubature add round-off), booleans and text exactly, two missing
-values are equal. The gate verdicts of the shipped gates (or `--gates`) must agree row by row. A row or a
-compared column that one side lacks is a difference; a column only the new side has is listed as a note.
-Prints a summary and exits 1 on any difference, 0 when none.
+others (reduced solvers: their training and cubature add round-off), booleans and text exactly (in text, each
+folder's path and the 16-digit run and model keys, which hash paths, are masked), two missing values are
+equal. The verdicts of the shipped gates (or `--gates`) must agree row by row, except those of gates on timing
+columns. A row or a compared column that one side lacks is a difference; a column only the new side has is
+listed as a note. Prints a summary and exits 1 on any difference, 0 when none.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -38,6 +40,8 @@ EXACT_RTOL = 1e-9
 REDUCED_RTOL = 1e-6
 #: Absolute floor of the comparison: values within it of each other are equal whatever their ratio.
 ATOL = 1e-12
+#: A run or model key in a text (e.g. a failure naming a model file): 16 hex digits, a hash of settings and paths.
+KEY = re.compile(r"\b[0-9a-f]{16}\b")
 
 
 @dataclass(frozen=True)
@@ -108,7 +112,10 @@ def _where(keys: list[str], key: tuple) -> str:
 
 
 def compare_verdicts(old: pd.DataFrame, new: pd.DataFrame, suite: str, gates: list[dict]) -> list[Difference]:
-    """Gate verdicts that differ between the two tables (a verdict only one side has included)."""
+    """Gate verdicts that differ between the two tables (a verdict only one side has included); gates on
+    timing columns (`IGNORED_COLUMNS`) are not judged: their verdicts depend on the machine's load."""
+    gates = [g for g in gates if g.get("metric") not in IGNORED_COLUMNS]
+
     def verdicts(frame: pd.DataFrame) -> dict[tuple, bool]:
         return {(v.gate, v.scenario, v.variant, v.metric): v.passed for v in check(frame, gates, suite)}
 
@@ -120,13 +127,28 @@ def compare_verdicts(old: pd.DataFrame, new: pd.DataFrame, suite: str, gates: li
 def compare_folders(old_dir: Path, new_dir: Path, exact_solvers: Sequence[str], gates_file: str | None
                     ) -> tuple[list[Difference], list[str], int]:
     """(differences, notes, rows compared) between two results folders of the same suite."""
-    old, new = pd.read_csv(old_dir / "results.csv"), pd.read_csv(new_dir / "results.csv")
+    old, new = (_masked(pd.read_csv(d / "results.csv"), (old_dir, new_dir)) for d in (old_dir, new_dir))
     suites = {load_run_info(d)["suite"] for d in (old_dir, new_dir)}
     if len(suites) != 1:
         raise ValueError(f"the folders hold different suites: {sorted(suites)}")
     differences, notes = compare_results(old, new, exact_solvers)
     differences += compare_verdicts(old, new, load_suite(suites.pop()).name, load_gates(gates_file))
     return differences, notes, len(old)
+
+
+def _masked(frame: pd.DataFrame, folders: Sequence[Path]) -> pd.DataFrame:
+    """The table with, in its text cells, the results folders' paths replaced by `<out>` and run and model keys by
+    `<key>`: they differ between two runs of the same code."""
+    paths = sorted({p for f in folders for p in (str(f), str(f.resolve()))}, key=len, reverse=True)
+
+    def mask(value: object) -> object:
+        if not isinstance(value, str):
+            return value
+        for path in paths:
+            value = value.replace(path, "<out>")
+        return KEY.sub("<key>", value)
+
+    return frame.map(mask)
 
 
 def run_suite_at(source: Path, suite: str, out: Path, jobs: int) -> Path:

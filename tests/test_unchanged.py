@@ -90,3 +90,22 @@ def test_main_compares_two_folders_and_exits_one_on_a_difference(tmp_path, capsy
     assert main([str(old), str(write_folder(tmp_path / "new", changed(1, "pos_rmse_rel", 0.031)))]) == 1
     out = capsys.readouterr().out
     assert "DIFFERENT" in out and "pos_rmse_rel: 0.03 -> 0.031" in out and "1 differences" in out
+
+
+def test_folder_paths_and_keys_in_texts_do_not_count(tmp_path) -> None:
+    """A failure naming a model file differs between two runs of the same code only by folder and key."""
+    def failing(folder: Path, key: str) -> pd.DataFrame:
+        return changed(2, "failure", f"PluginError: pod basis {folder}/models/pod-{key}/basis.npz: bound to its mesh")
+
+    old, new = tmp_path / "old", tmp_path / "new"
+    write_folder(old, failing(old, "edd9786642b48f8d"))
+    write_folder(new, failing(new, "2330b9c96b261d49"))
+    assert main([str(old), str(new)]) == 0
+    write_folder(tmp_path / "other", changed(2, "failure", f"PluginError: pod basis {new}/models/pod-x/basis.npz"))
+    assert main([str(old), str(tmp_path / "other")]) == 1  # the reason itself changed
+
+
+def test_gates_on_timing_are_not_judged() -> None:
+    gates = [{"suite": "quick", "variant": "licrom/licrom", "metric": "speedup", "min": 5.0}]
+    slower = table().assign(speedup=[1.0, 20.0, None])
+    assert compare_verdicts(slower, slower.assign(speedup=[1.0, 2.0, None]), "quick", gates) == []
