@@ -61,12 +61,17 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out."""
+    """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out. The resource guard
+    (`scenarios.resources`) refuses an oversized run before anything heavy is imported."""
+    from scenarios.resources import check_runs
+
+    scenario = resolve_scenario(args.scenario)
+    check_runs([(scenario, parse_mesh(args.mesh) or scenario.mesh)], allow_large=args.allow_large)
+
     from reports.export import export_vtu_series
     from solvers.run import run_scenario
     from solvers.trajectory import write_json_atomic
 
-    scenario = resolve_scenario(args.scenario)
     params = {}
     if args.model:
         if args.solver != "licrom":
@@ -109,7 +114,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from bench.runner import run_suite
 
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
-                    jobs=args.jobs, executor=args.executor, report=not args.no_report, only=args.only)
+                    jobs=args.jobs, executor=args.executor, report=not args.no_report, only=args.only,
+                    allow_large=args.allow_large)
     print(f"results: {csv}")
     if not args.no_report:
         print(f"report:  {Path(args.out) / 'report.html'}")
@@ -120,6 +126,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     """Train a LiCROM model on the full-space trajectories of a suite's training split (generated and cached)."""
     from bench.runner import Task, run_tasks
     from bench.store import RunStore
+    from scenarios.resources import check_runs
     from scenarios.suites import load_suite
     from solvers.licrom.train import train_from_trajectories
 
@@ -130,6 +137,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     shapes = {m.scenario.mesh.key for m in members}
     if len(shapes) > 1:
         raise ScenarioError("--mesh", args.mesh, f"training members span several meshes {sorted(shapes)}; pick one")
+    check_runs([(m.scenario, m.scenario.mesh) for m in members], allow_large=args.allow_large or suite.allow_large)
     out = Path(args.out)
     store = RunStore(Path(args.store) if args.store else out / "runs")
     tasks = [Task(m.scenario, "full", {}) for m in members]
@@ -192,6 +200,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--no-vtu", action="store_true", help="skip the VTU/PVD export")
     s.add_argument("-q", "--quiet", action="store_true")
+    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
+                   "and stored frames (scenarios.resources)")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
@@ -206,6 +216,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
     s.add_argument("--no-report", action="store_true")
+    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
+                   "and stored frames (scenarios.resources)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("train", help="train a LiCROM model on a suite's training split")
@@ -221,6 +233,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--jobs", type=int, default=1)
     s.add_argument("--store", help="run store for the training trajectories (default OUT/runs)")
     s.add_argument("--out", required=True)
+    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
+                   "and stored frames (scenarios.resources)")
     s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("report", help="rebuild report.html from stored results")
