@@ -1,4 +1,4 @@
-"""The `frictionbench` command line: list, simulate, train, run, report, gate."""
+"""The `frictionbench` command line: list, simulate, train, run, report, gate, compare."""
 
 from __future__ import annotations
 
@@ -113,10 +113,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
     from bench.runner import run_suite
 
+    with_baseline = args.baseline is not None and not args.no_report
+    if with_baseline:  # a bad baseline or tolerance is refused before the run, not after it
+        from bench.compare import DEFAULT_RULES, CompareError, read_results, with_tolerances
+
+        try:
+            read_results(args.baseline), with_tolerances(DEFAULT_RULES, args.tol)
+        except CompareError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
-                    jobs=args.jobs, executor=args.executor, report=not args.no_report, only=args.only,
-                    allow_large=args.allow_large)
+                    jobs=args.jobs, executor=args.executor, report=not args.no_report and not with_baseline,
+                    only=args.only, allow_large=args.allow_large)
     print(f"results: {csv}")
+    if with_baseline:
+        return cmd_report(argparse.Namespace(dir=args.out, baseline=args.baseline, tol=args.tol))
     if not args.no_report:
         print(f"report:  {Path(args.out) / 'report.html'}")
     return 0
@@ -151,11 +162,34 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    """Rebuild report.html from a results folder."""
-    from bench.reporting import build_report
+    """Rebuild report.html from a results folder (with a section comparing it with --baseline, if given)."""
+    from bench.compare import CompareError, compare_folders, summary
+    from bench.reporting import GATES_FILE, build_report
 
-    print(build_report(args.dir))
+    try:
+        print(f"report:  {build_report(args.dir, baseline=args.baseline, tolerances=args.tol)}")
+        if args.baseline is not None:
+            print(f"against the baseline {args.baseline}: "
+                  f"{summary(compare_folders(args.baseline, args.dir, args.tol, GATES_FILE))}")
+    except CompareError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     return 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    """Compare a result set with a baseline per scenario, variant and metric; exit 1 on a regression."""
+    from bench.compare import CompareError, compare_folders, format_table, regressions, summary
+    from bench.reporting import GATES_FILE
+
+    try:
+        comparison = compare_folders(args.baseline, args.new, args.tol, args.gates or GATES_FILE)
+    except CompareError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(format_table(comparison, everything=args.all))
+    print(f"{args.baseline} -> {args.new}: {summary(comparison)}")
+    return 1 if regressions(comparison) else 0
 
 
 def cmd_gate(args: argparse.Namespace) -> int:
@@ -216,6 +250,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
     s.add_argument("--no-report", action="store_true")
+    s.add_argument("--baseline", help="another output folder: the report gets a section comparing with it")
+    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
+                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
+                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
+                        "see bench/compare.py")
     s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
                    "and stored frames (scenarios.resources)")
     s.set_defaults(func=cmd_run)
@@ -239,12 +278,29 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("report", help="rebuild report.html from stored results")
     s.add_argument("dir")
+    s.add_argument("--baseline", help="another output folder: the report gets a section comparing with it")
+    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
+                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
+                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
+                        "see bench/compare.py")
     s.set_defaults(func=cmd_report)
 
     s = sub.add_parser("gate", help="check gates.toml against stored results (exit 1 if any fails)")
     s.add_argument("dir")
     s.add_argument("--gates", help="gates file (default: the repository's gates.toml)")
     s.set_defaults(func=cmd_gate)
+
+    s = sub.add_parser("compare", help="compare two result sets per scenario, variant and metric "
+                                       "(exit 1 on a regression beyond the tolerances or a newly failing gate)")
+    s.add_argument("baseline", help="the baseline: an output folder (its results.csv) or a results CSV")
+    s.add_argument("new", help="the result set judged against it")
+    s.add_argument("--gates", help="gates file (default: the repository's gates.toml)")
+    s.add_argument("--all", action="store_true", help="list the unchanged rows too")
+    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
+                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
+                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
+                        "see bench/compare.py")
+    s.set_defaults(func=cmd_compare)
     return p
 
 

@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
 
 from bench.gates import check, load_gates
 from bench.store import RunStore
-from reports.html import ScenarioRuns, write_report_html
+from reports.html import ScenarioRuns, comparison_section, write_report_html
 
 GATES_FILE = Path(__file__).resolve().parent.parent / "gates.toml"
 
 
-def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scenarios: int = 4) -> Path:
-    """Rebuild `out/report.html` from `out/results.csv` and the run store; renders the first scenarios."""
+def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scenarios: int = 4,
+                 baseline: str | Path | None = None, tolerances: Sequence[str] = ()) -> Path:
+    """Rebuild `out/report.html` from `out/results.csv` and the run store; renders the first scenarios. With a
+    `baseline` result set (an output folder), the report gets a section comparing the results with it
+    (`bench.compare`, its default tolerances changed by `tolerances`)."""
     from bench.runner import load_run_info
 
     out = Path(out)
@@ -40,4 +44,11 @@ def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scena
                 if traj is not None:
                     others[f"{row['solver']}/{row['variant']}"] = traj
         runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, plane=planes.get(scenario)))
-    return write_report_html(results, out, gates=verdicts, runs=runs, title=f"frictionbench: {suite.name} suite")
+    extra = []
+    if baseline is not None:
+        from bench.compare import compare_folders
+
+        comparison = compare_folders(baseline, out, tolerances, gates_file if Path(gates_file).is_file() else None)
+        extra.append(("Comparison with the baseline", comparison_section(comparison, str(baseline))))
+    return write_report_html(results, out, gates=verdicts, runs=runs, extra_sections=extra,
+                             title=f"frictionbench: {suite.name} suite")
