@@ -171,12 +171,14 @@ def _labels(frame: pd.DataFrame) -> pd.Series:
     return variant_labels(frame)
 
 
-def _keyed(frame: pd.DataFrame, name: str) -> pd.DataFrame:
-    """The rows indexed by KEY; a duplicated key is an error naming it."""
-    keyed = frame.assign(label=_labels(frame)).set_index(list(KEY))
-    dup = keyed.index[keyed.index.duplicated()]
-    if len(dup):
-        raise CompareError(f"{name}: several rows for {list(dict.fromkeys(dup))[:3]} ({', '.join(KEY)})")
+def _keyed(frame: pd.DataFrame, name: str) -> dict[tuple, dict]:
+    """KEY -> the row (a dict, with its `label`); a duplicated key is an error naming it."""
+    keyed: dict[tuple, dict] = {}
+    for row in frame.assign(label=_labels(frame)).to_dict("records"):
+        key = tuple(row[k] for k in KEY)
+        if key in keyed:
+            raise CompareError(f"{name}: several rows for {key} ({', '.join(KEY)})")
+        keyed[key] = row
     return keyed
 
 
@@ -258,20 +260,19 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
     for _, _, metric in gated_n:
         by_metric.setdefault(metric, Rule(metric, "gate", "none"))
     rows = []
-    for key in list(dict.fromkeys([*b.index, *n.index])):
+    for key in dict.fromkeys([*b, *n]):
         scenario = key[0]
-        if key not in n.index:
-            label = b.loc[key, "label"]
-            rows.append(_row("regression", scenario, label, "(row)", "", reason="missing in the new set"))
+        if key not in n:
+            rows.append(_row("regression", scenario, b[key]["label"], "(row)", "", reason="missing in the new set"))
             continue
-        label = n.loc[key, "label"]
-        if key not in b.index:
+        label = n[key]["label"]
+        if key not in b:
             rows.append(_row("new", scenario, label, "(row)", "", reason="not in the baseline"))
             continue
-        rb, rn = b.loc[key], n.loc[key]
+        rb, rn = b[key], n[key]
         if _flag(rb.get("status")) is not False and _flag(rn.get("status")) is False:
             rows.append(_row("regression", scenario, label, "status", "stability", rb.get("status"),
-                             rn.get("status"), reason=f"run failed: {rn.get('failure', '')}"))
+                             rn.get("status"), reason=f"run failed: {'' if _missing(rn.get('failure')) else rn['failure']}"))
             continue
         for metric, rule in by_metric.items():
             vb, vn = rb.get(metric), rn.get(metric)
