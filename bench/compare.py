@@ -271,8 +271,9 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
             continue
         rb, rn = b[key], n[key]
         if _flag(rb.get("status")) is not False and _flag(rn.get("status")) is False:
+            failure = "" if _missing(rn.get("failure")) else rn["failure"]
             rows.append(_row("regression", scenario, label, "status", "stability", rb.get("status"),
-                             rn.get("status"), reason=f"run failed: {'' if _missing(rn.get('failure')) else rn['failure']}"))
+                             rn.get("status"), reason=f"run failed: {failure}"))
             continue
         for metric, rule in by_metric.items():
             vb, vn = rb.get(metric), rn.get(metric)
