@@ -57,16 +57,20 @@ def _count(x: float) -> str:
     return f"{x:,.0f}" if x < 1e9 else f"{x:.3g}"
 
 
-def check_resources(scenario: Scenario, n_vertices: int, *, allow_large: bool = False) -> None:
+def check_resources(scenario: Scenario, n_vertices: int | None, *, allow_large: bool = False) -> None:
     """Raise ScenarioError naming `time.dt`, `time.duration` or `time.frame_every`, with the step count and the
     estimated size of the stored frames, when a run of `scenario` on a mesh of `n_vertices` vertices exceeds
-    MAX_STEPS or MAX_STORED_BYTES; `allow_large` lifts both bounds."""
+    MAX_STEPS or MAX_STORED_BYTES; `allow_large` lifts both bounds. With `n_vertices` None (mesh not loaded yet)
+    only the step count is checked and the size is given per vertex."""
     if allow_large:
         return
     t = scenario.time
-    steps, frames, size = step_count(t), stored_frames(t), stored_bytes(t, n_vertices)
-    figures = (f"{_count(steps)} steps (time.duration {t.duration:g} s / time.dt {t.dt:g} s), "
-               f"{_count(frames)} stored frames x {n_vertices} vertices = {format_bytes(size)} in memory and on disk")
+    steps, frames = step_count(t), stored_frames(t)
+    size = (f"{_count(frames)} stored frames x {n_vertices} vertices = {format_bytes(stored_bytes(t, n_vertices))}"
+            if n_vertices is not None else
+            f"{_count(frames)} stored frames = {format_bytes(stored_bytes(t, 1))} per mesh vertex")
+    figures = (f"{_count(steps)} steps (time.duration {t.duration:g} s / time.dt {t.dt:g} s), {size} in memory "
+               "and on disk")
     if steps > MAX_STEPS:
         # name the field that strays further from the defaults (1 s at 0.01 s)
         default = TimeSpec()
@@ -74,16 +78,20 @@ def check_resources(scenario: Scenario, n_vertices: int, *, allow_large: bool = 
         value = t.dt if field == "time.dt" else t.duration
         raise ScenarioError(field, value, f"{scenario.name}: {figures}; over the bound of {MAX_STEPS} steps; "
                                           f"{OVERRIDE_HINT}")
-    if size > MAX_STORED_BYTES:
+    if n_vertices is not None and stored_bytes(t, n_vertices) > MAX_STORED_BYTES:
         raise ScenarioError("time.frame_every", t.frame_every,
                             f"{scenario.name}: {figures}; over the bound of {format_bytes(MAX_STORED_BYTES)}: store "
                             f"fewer frames (a larger time.frame_every) or {OVERRIDE_HINT}")
 
 
 def check_runs(runs: Iterable[tuple[Scenario, MeshSpec]], *, allow_large: bool = False) -> None:
-    """`check_resources` on every (scenario, mesh) run; each distinct mesh is loaded once for its vertex count."""
+    """`check_resources` on every (scenario, mesh) run: first every step count (no mesh is loaded, so an absurd
+    time step is refused at once), then the stored frames, loading each distinct mesh once for its vertex count."""
     if allow_large:
         return
+    runs = list(runs)
+    for scenario, _ in runs:
+        check_resources(scenario, None)
     from scenarios.meshes import load_mesh
 
     vertices: dict[MeshSpec, int] = {}

@@ -4,6 +4,7 @@ the estimated size; an explicit override lets them through; every shipped suite 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -41,7 +42,8 @@ def test_simulate_refuses_an_absurd_step_count_at_once(tmp_path: Path, entry: st
     assert elapsed < 5.0  # interpreter start and imports included; the guard itself needs no simulation
     message = done.stderr
     assert message.startswith(f"error: {field} = ")
-    assert steps in message and "PiB in memory and on disk" in message  # the step count and the estimated size
+    assert steps in message and "stored frames = " in message  # the step count and the estimated size
+    assert re.search(r"stored frames = [0-9.]+ [TP]iB per mesh vertex in memory and on disk", message)
     assert "--allow-large" in message
     assert not (tmp_path / "out").exists()
 
