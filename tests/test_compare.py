@@ -17,6 +17,7 @@ from bench.compare import (DEFAULT_RULES, CompareError, compare_results, read_re
 from bench.gates import load_gates
 from bench.reporting import GATES_FILE
 from bench.runner import run_suite
+from reports.browser_check import check_report
 from reports.html import comparison_section
 
 GATES = load_gates(GATES_FILE)
@@ -153,7 +154,7 @@ def test_the_report_section_escapes_every_text():
 
 
 def test_report_and_compare_on_real_runs(tmp_path: Path):
-    """A tiny suite run, then a baseline with a planted better error: the report gets the comparison section and
+    """A tiny suite run, then a baseline with a planted better figure: the report gets the comparison section and
     `compare` fails; against an identical copy it passes."""
     suite = tmp_path / "tiny.toml"
     suite.write_text('[suite]\nname = "tiny"\n[base.mesh]\nname = "block"\nresolution = "coarse"\n'
@@ -172,4 +173,5 @@ def test_report_and_compare_on_real_runs(tmp_path: Path):
     page = (out / "report.html").read_text()
     assert "Comparison with the baseline" in page and "1 regressions against the baseline" in page
     assert "max_penetration_rel" in page.split("Comparison with the baseline", 1)[1]
+    assert check_report(out / "report.html") == []  # still opens offline in Chromium with no error
     assert _cli("compare", base, str(out))[0] == 1
