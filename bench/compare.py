@@ -329,7 +329,7 @@ def regressions(comparison: pd.DataFrame) -> int:
 def summary(comparison: pd.DataFrame) -> str:
     """One line: how many rows of each verdict."""
     counts = comparison["verdict"].value_counts()
-    return ", ".join(f"{int(counts.get(v, 0))} {v}" for v in VERDICTS) + " (metric rows)"
+    return "metric rows: " + ", ".join(f"{v} {int(counts.get(v, 0))}" for v in VERDICTS)
 
 
 def format_table(comparison: pd.DataFrame, everything: bool = False) -> str:

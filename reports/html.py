@@ -358,8 +358,8 @@ def comparison_section(comparison: pd.DataFrame, baseline: str, max_rows: int = 
     regressions where there are more than `max_rows`). Every text is escaped."""
     counts = comparison["verdict"].value_counts()
     n_reg = int(counts.get("regression", 0))
-    tally = ", ".join(f"{int(n)} {verdict}" for verdict, n in counts.items())
-    banner = (f"{n_reg} regressions against the baseline {baseline}" if n_reg
+    tally = ", ".join(f"{verdict} {int(n)}" for verdict, n in counts.items())
+    banner = (f"Regressions against the baseline {baseline}: {n_reg}" if n_reg
               else f"No regression against the baseline {baseline}")
     parts = [f'<p class="banner {"fail" if n_reg else "pass"}">{html.escape(banner)}</p>',
              _note(f"Metric rows: {tally or 'none'}. A regression is a metric that moved in its bad direction by "

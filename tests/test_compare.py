@@ -62,7 +62,7 @@ def test_identical_result_sets_pass(tmp_path: Path):
     a, b = _write(tmp_path / "a", _results()), _write(tmp_path / "b", _results())
     code, out, _ = _cli("compare", a, b)
     assert code == 0
-    assert "no changes beyond the tolerances" in out and "0 regression" in out
+    assert "no changes beyond the tolerances" in out and "regression 0," in out
 
 
 def test_a_planted_accuracy_regression_fails(tmp_path: Path):
@@ -73,10 +73,10 @@ def test_a_planted_accuracy_regression_fails(tmp_path: Path):
     line = next(x for x in out.splitlines() if x.lstrip().startswith("regression"))
     assert "quick/p1_mu0.1" in line and "licrom/affine-r24-cub60" in line and "pos_rmse_rel" in line
     assert "10%,0.0001" in line and "max 0.05" in line  # its tolerance and the gate's threshold
-    assert "1 regression" in out
+    assert "regression 1," in out
     # the same change the other way is an improvement, not a failure
     code, out, _ = _cli("compare", b, a)
-    assert code == 0 and "1 improved" in out
+    assert code == 0 and "improved 1," in out
 
 
 def test_changes_within_the_tolerances_pass_and_tolerances_are_configurable(tmp_path: Path):
@@ -150,7 +150,7 @@ def test_the_report_section_escapes_every_text():
     fragment = comparison_section(compare_results(base, new, DEFAULT_RULES, GATES), "<b>base</b>")
     assert "<script>" not in fragment and "<img" not in fragment and "<b>" not in fragment
     assert "&lt;script&gt;" in fragment and "&lt;img src=x" in fragment
-    assert "1 regressions against the baseline &lt;b&gt;base&lt;/b&gt;" in fragment
+    assert "Regressions against the baseline &lt;b&gt;base&lt;/b&gt;: 1" in fragment
 
 
 def test_report_and_compare_on_real_runs(tmp_path: Path):
@@ -169,9 +169,9 @@ def test_report_and_compare_on_real_runs(tmp_path: Path):
     better = read_results(out).assign(max_penetration_rel=lambda f: f["max_penetration_rel"] / 2 - 1e-3)
     base = _write(tmp_path / "base", better)
     code, stdout, _ = _cli("report", str(out), "--baseline", base)
-    assert code == 0 and "1 regression" in stdout
+    assert code == 0 and "regression 1," in stdout
     page = (out / "report.html").read_text()
-    assert "Comparison with the baseline" in page and "1 regressions against the baseline" in page
+    assert "Comparison with the baseline" in page and "Regressions against the baseline" in page
     assert "max_penetration_rel" in page.split("Comparison with the baseline", 1)[1]
     assert check_report(out / "report.html") == []  # still opens offline in Chromium with no error
     assert _cli("compare", base, str(out))[0] == 1
