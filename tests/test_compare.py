@@ -161,17 +161,23 @@ def test_report_and_compare_on_real_runs(tmp_path: Path):
                      '[base.initial]\nclearance = 0.01\n[base.time]\ndt = 0.01\nduration = 0.03\n'
                      '[[axis]]\nname = "mu"\nfield = "plane.friction"\nvalues = [0.3]\n')
     out = tmp_path / "out"
-    run_suite(str(suite), out, variants=[], jobs=1, report=False)
+    run_suite(str(suite), out, variants=[], jobs=1)
     same = tmp_path / "same"
     same.mkdir()
     shutil.copy(out / "results.csv", same / "results.csv")
     assert _cli("compare", str(same), str(out))[0] == 0
     better = read_results(out).assign(max_penetration_rel=lambda f: f["max_penetration_rel"] / 2 - 1e-3)
     base = _write(tmp_path / "base", better)
-    code, stdout, _ = _cli("report", str(out), "--baseline", base)
-    assert code == 0 and "regression 1," in stdout
-    page = (out / "report.html").read_text()
-    assert "Comparison with the baseline" in page and "Regressions against the baseline" in page
-    assert "max_penetration_rel" in page.split("Comparison with the baseline", 1)[1]
+    for argv in (["report", str(out)], ["run", "--suite", str(suite), "--solvers", "full", "--out", str(out)]):
+        (out / "report.html").unlink()
+        code, stdout, _ = _cli(*argv, "--baseline", base)  # the run resumes: every run is stored
+        assert code == 0 and "regression 1," in stdout
+        page = (out / "report.html").read_text()
+        assert "Comparison with the baseline" in page and "Regressions against the baseline" in page
+        assert "max_penetration_rel" in page.split("Comparison with the baseline", 1)[1]
     assert check_report(out / "report.html") == []  # still opens offline in Chromium with no error
     assert _cli("compare", base, str(out))[0] == 1
+    # a bad baseline is refused before a run starts
+    code, _, err = _cli("run", "--suite", str(suite), "--out", str(tmp_path / "unrun"), "--baseline",
+                        str(tmp_path / "nowhere"))
+    assert code == 2 and "nowhere" in err and not (tmp_path / "unrun").exists()
