@@ -118,7 +118,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         from bench.compare import DEFAULT_RULES, CompareError, read_results, with_tolerances
 
         try:
-            read_results(args.baseline), with_tolerances(DEFAULT_RULES, args.tol)
+            read_results(args.baseline)
+            with_tolerances(DEFAULT_RULES, args.tol)
         except CompareError as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
@@ -216,6 +217,26 @@ def cmd_gate(args: argparse.Namespace) -> int:
     return 1 if failed or not binding else 0
 
 
+def _add_allow_large_arg(s: argparse.ArgumentParser) -> None:
+    """--allow-large: the override of the resource guard."""
+    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
+                   "and stored frames (scenarios.resources)")
+
+
+def _add_tolerance_arg(s: argparse.ArgumentParser) -> None:
+    """--tol: the tolerances of a comparison with a baseline."""
+    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
+                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
+                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
+                        "see bench/compare.py")
+
+
+def _add_baseline_args(s: argparse.ArgumentParser) -> None:
+    """--baseline and --tol: the report's comparison with another result set."""
+    s.add_argument("--baseline", help="another output folder: the report gets a section comparing with it")
+    _add_tolerance_arg(s)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every sub-command."""
     p = argparse.ArgumentParser(prog="frictionbench", description=__doc__)
@@ -234,8 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--no-vtu", action="store_true", help="skip the VTU/PVD export")
     s.add_argument("-q", "--quiet", action="store_true")
-    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
-                   "and stored frames (scenarios.resources)")
+    _add_allow_large_arg(s)
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
@@ -250,13 +270,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
     s.add_argument("--no-report", action="store_true")
-    s.add_argument("--baseline", help="another output folder: the report gets a section comparing with it")
-    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
-                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
-                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
-                        "see bench/compare.py")
-    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
-                   "and stored frames (scenarios.resources)")
+    _add_baseline_args(s)
+    _add_allow_large_arg(s)
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("train", help="train a LiCROM model on a suite's training split")
@@ -272,17 +287,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--jobs", type=int, default=1)
     s.add_argument("--store", help="run store for the training trajectories (default OUT/runs)")
     s.add_argument("--out", required=True)
-    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
-                   "and stored frames (scenarios.resources)")
+    _add_allow_large_arg(s)
     s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("report", help="rebuild report.html from stored results")
     s.add_argument("dir")
-    s.add_argument("--baseline", help="another output folder: the report gets a section comparing with it")
-    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
-                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
-                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
-                        "see bench/compare.py")
+    _add_baseline_args(s)
     s.set_defaults(func=cmd_report)
 
     s = sub.add_parser("gate", help="check gates.toml against stored results (exit 1 if any fails)")
@@ -296,10 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("new", help="the result set judged against it")
     s.add_argument("--gates", help="gates file (default: the repository's gates.toml)")
     s.add_argument("--all", action="store_true", help="list the unchanged rows too")
-    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
-                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
-                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
-                        "see bench/compare.py")
+    _add_tolerance_arg(s)
     s.set_defaults(func=cmd_compare)
     return p
 
