@@ -1,4 +1,4 @@
-"""The `frictionbench` command line: list, simulate, train, run, report, gate."""
+"""The `frictionbench` command line: list, simulate, train, run, report, gate, compare."""
 
 from __future__ import annotations
 
@@ -61,12 +61,17 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out."""
+    """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out. The resource guard
+    (`scenarios.resources`) refuses an oversized run before anything heavy is imported."""
+    from scenarios.resources import check_runs
+
+    scenario = resolve_scenario(args.scenario)
+    check_runs([(scenario, parse_mesh(args.mesh) or scenario.mesh)], allow_large=args.allow_large)
+
     from reports.export import export_vtu_series
     from solvers.run import run_scenario
     from scenarios.atomic import write_json_atomic
 
-    scenario = resolve_scenario(args.scenario)
     params = {}
     if args.model:
         if args.solver != "licrom":
@@ -108,9 +113,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
     from bench.runner import run_suite
 
+    with_baseline = args.baseline is not None and not args.no_report
+    if with_baseline:  # a bad baseline or tolerance is refused before the run, not after it
+        from bench.compare import DEFAULT_RULES, CompareError, read_results, with_tolerances
+
+        try:
+            read_results(args.baseline)
+            with_tolerances(DEFAULT_RULES, args.tol)
+        except CompareError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
-                    jobs=args.jobs, executor=args.executor, report=not args.no_report, only=args.only)
+                    jobs=args.jobs, executor=args.executor, report=not args.no_report and not with_baseline,
+                    only=args.only, allow_large=args.allow_large)
     print(f"results: {csv}")
+    if with_baseline:
+        return cmd_report(argparse.Namespace(dir=args.out, baseline=args.baseline, tol=args.tol))
     if not args.no_report:
         print(f"report:  {Path(args.out) / 'report.html'}")
     return 0
@@ -120,6 +138,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     """Train a LiCROM model on the full-space trajectories of a suite's training split (generated and cached)."""
     from bench.runner import Task, run_tasks
     from bench.store import RunStore
+    from scenarios.resources import check_runs
     from scenarios.suites import load_suite
     from solvers.licrom.train import TrainSettings, train_from_trajectories
 
@@ -130,6 +149,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     shapes = {m.scenario.mesh.key for m in members}
     if len(shapes) > 1:
         raise ScenarioError("--mesh", args.mesh, f"training members span several meshes {sorted(shapes)}; pick one")
+    check_runs([(m.scenario, m.scenario.mesh) for m in members], allow_large=args.allow_large or suite.allow_large)
     out = Path(args.out)
     store = RunStore(Path(args.store) if args.store else out / "runs")
     tasks = [Task(m.scenario, "full", {}) for m in members]
@@ -143,11 +163,33 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    """Rebuild report.html from a results folder."""
+    """Rebuild report.html from a results folder (with a section comparing it with --baseline, if given)."""
+    from bench.compare import CompareError, compare_folders, summary
     from bench.reporting import build_report
 
-    print(build_report(args.dir))
+    try:
+        print(f"report:  {build_report(args.dir, baseline=args.baseline, tolerances=args.tol)}")
+        if args.baseline is not None:
+            print(f"against the baseline {args.baseline}: "
+                  f"{summary(compare_folders(args.baseline, args.dir, args.tol))}")
+    except CompareError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     return 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    """Compare a result set with a baseline per scenario, variant and metric; exit 1 on a regression."""
+    from bench.compare import CompareError, compare_folders, format_table, regressions, summary
+
+    try:
+        comparison = compare_folders(args.baseline, args.new, args.tol, args.gates)
+    except CompareError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(format_table(comparison, everything=args.all))
+    print(f"{args.baseline} -> {args.new}: {summary(comparison)}")
+    return 1 if regressions(comparison) else 0
 
 
 def cmd_gate(args: argparse.Namespace) -> int:
@@ -173,6 +215,26 @@ def cmd_gate(args: argparse.Namespace) -> int:
     return 1 if failed or not binding else 0
 
 
+def _add_allow_large_arg(s: argparse.ArgumentParser) -> None:
+    """--allow-large: the override of the resource guard."""
+    s.add_argument("--allow-large", action="store_true", help="lift the resource guard's bounds on step count "
+                   "and stored frames (scenarios.resources)")
+
+
+def _add_tolerance_arg(s: argparse.ArgumentParser) -> None:
+    """--tol: the tolerances of a comparison with a baseline."""
+    s.add_argument("--tol", action="append", default=[], metavar="METRIC=SPEC",
+                   help="change a comparison tolerance (repeatable): METRIC or KIND (accuracy, stability, timing) = "
+                        "off, 5%%, 0.001, 5%%,0.001 or x1.5, optionally after DIRECTION: (lower, higher, true, one); "
+                        "see bench/compare.py")
+
+
+def _add_baseline_args(s: argparse.ArgumentParser) -> None:
+    """--baseline and --tol: the report's comparison with another result set."""
+    s.add_argument("--baseline", help="another output folder: the report gets a section comparing with it")
+    _add_tolerance_arg(s)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every sub-command."""
     p = argparse.ArgumentParser(prog="frictionbench", description=__doc__)
@@ -191,6 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--no-vtu", action="store_true", help="skip the VTU/PVD export")
     s.add_argument("-q", "--quiet", action="store_true")
+    _add_allow_large_arg(s)
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
@@ -205,6 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
     s.add_argument("--no-report", action="store_true")
+    _add_baseline_args(s)
+    _add_allow_large_arg(s)
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("train", help="train a LiCROM model on a suite's training split")
@@ -220,16 +285,27 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--jobs", type=int, default=1)
     s.add_argument("--store", help="run store for the training trajectories (default OUT/runs)")
     s.add_argument("--out", required=True)
+    _add_allow_large_arg(s)
     s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("report", help="rebuild report.html from stored results")
     s.add_argument("dir")
+    _add_baseline_args(s)
     s.set_defaults(func=cmd_report)
 
     s = sub.add_parser("gate", help="check gates.toml against stored results (exit 1 if any fails)")
     s.add_argument("dir")
     s.add_argument("--gates", help="gates file (default: the gates.toml shipped with the package)")
     s.set_defaults(func=cmd_gate)
+
+    s = sub.add_parser("compare", help="compare two result sets per scenario, variant and metric "
+                                       "(exit 1 on a regression beyond the tolerances or a newly failing gate)")
+    s.add_argument("baseline", help="the baseline: an output folder (its results.csv) or a results CSV")
+    s.add_argument("new", help="the result set judged against it")
+    s.add_argument("--gates", help="gates file (default: the gates.toml shipped with the package)")
+    s.add_argument("--all", action="store_true", help="list the unchanged rows too")
+    _add_tolerance_arg(s)
+    s.set_defaults(func=cmd_compare)
     return p
 
 

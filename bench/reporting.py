@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -9,12 +10,15 @@ import pandas as pd
 from analysis.metrics import error_over_time
 from bench.gates import check, load_gates
 from bench.store import RunStore, load_run_info
-from reports.html import ScenarioRuns, write_report_html
+from reports.html import ScenarioRuns, comparison_section, write_report_html
 from scenarios.suites import load_suite
 
-def build_report(out: str | Path, gates_file: str | Path | None = None, max_scenarios: int = 4) -> Path:
+
+def build_report(out: str | Path, gates_file: str | Path | None = None, max_scenarios: int = 4,
+                 baseline: str | Path | None = None, tolerances: Sequence[str] = ()) -> Path:
     """Rebuild `out/report.html` from `out/results.csv` and the run store, judged by `gates_file` (None: the
-    shipped gates); renders the first scenarios."""
+    shipped gates); renders the first scenarios. With a `baseline` result set (an output folder), the report gets a
+    section comparing the results with it (`bench.compare`, its default tolerances changed by `tolerances`)."""
     out = Path(out)
     results = pd.read_csv(out / "results.csv")
     suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path
@@ -38,4 +42,11 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
         errors = {label: error_over_time(ref, traj) for label, traj in others.items()}
         runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, errors=errors,
                                  plane=planes.get(scenario)))
-    return write_report_html(results, out, gates=verdicts, runs=runs, title=f"frictionbench: {suite.name} suite")
+    extra = []
+    if baseline is not None:
+        from bench.compare import compare_folders
+
+        comparison = compare_folders(baseline, out, tolerances, gates_file)
+        extra.append(("Comparison with the baseline", comparison_section(comparison, str(baseline))))
+    return write_report_html(results, out, gates=verdicts, runs=runs, extra_sections=extra,
+                             title=f"frictionbench: {suite.name} suite")

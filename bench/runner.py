@@ -122,14 +122,17 @@ def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
 
 
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
-              executor: str = "process", report: bool = True, only: str | None = None) -> Path:
+              executor: str = "process", report: bool = True, only: str | None = None,
+              allow_large: bool = False) -> Path:
     """Run the matrix of `suite_name` with `variants` into `out` (only the members matching the shell pattern
-    `only`, if given); returns the results.csv path."""
+    `only`, if given); returns the results.csv path. Every run is checked by the resource guard first
+    (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts its bounds)."""
     from bench.training import prepare_variants
 
     out = Path(out)
     store = RunStore(out / "runs")
     suite = load_suite(suite_name).only(only)
+    guard_resources(suite, variants, allow_large=allow_large or suite.allow_large)
     t0 = time.perf_counter()
     refs = {m.scenario.name: Task(m.scenario, "full", {}) for m in suite.scenarios}
     remesh_refs = [Task(m.scenario, "full", {}, mesh_variant(m, v.remesh))
@@ -155,6 +158,24 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
         build_report(out)
     return csv
+
+
+def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = False) -> None:
+    """Refuse the whole matrix before any work when one of its runs (a reference, a remeshed reference, a variant
+    with its own time step) exceeds the bounds of `scenarios.resources.check_resources`."""
+    from scenarios.errors import ScenarioError
+    from scenarios.resources import check_runs
+
+    runs = []
+    for m in suite.scenarios:
+        runs.append((m.scenario, m.scenario.mesh))
+        for v in variants:
+            try:
+                sc = v.scenario(m.scenario)
+            except ScenarioError:  # not applicable: a failed row, never run
+                continue
+            runs.append((sc, mesh_variant(m, v.remesh) if v.remesh else sc.mesh))
+    check_runs(runs, allow_large=allow_large)
 
 
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:

@@ -342,6 +342,29 @@ def _provenance(frame: pd.DataFrame, renderer: Renderer | None) -> str:
     return _table(pd.DataFrame(rows, columns=["field", "value"])) if rows else _note("No provenance recorded.")
 
 
+def comparison_section(comparison: pd.DataFrame, baseline: str, max_rows: int = 500) -> str:
+    """The comparison of these results with a baseline result set (`bench.compare.compare_results`'s table): a
+    banner with the count of each verdict, then the rows that are not `ok` (regressions first; only the
+    regressions where there are more than `max_rows`). Every text is escaped."""
+    counts = comparison["verdict"].value_counts()
+    n_reg = int(counts.get("regression", 0))
+    tally = ", ".join(f"{verdict} {int(n)}" for verdict, n in counts.items())
+    banner = (f"Regressions against the baseline {baseline}: {n_reg}" if n_reg
+              else f"No regression against the baseline {baseline}")
+    parts = [f'<p class="banner {"fail" if n_reg else "pass"}">{html.escape(banner)}</p>',
+             _note(f"Metric rows: {tally or 'none'}. A regression is a metric that moved in its bad direction by "
+                   "more than its tolerance (relative % and absolute; timing as a ratio x), a binding gate that "
+                   "the baseline met and these results fail, a failed run, or a row or value the baseline has and "
+                   "these results lack. `frictionbench compare BASELINE OUT` prints the same table.")]
+    changed = comparison[comparison["verdict"] != "ok"]
+    if len(changed) > max_rows:
+        changed = changed[changed["verdict"] == "regression"].head(max_rows)
+        parts.append(_note(f"Only the first {len(changed)} regressions are listed."))
+    if not changed.empty:
+        parts.append(_table(changed.drop(columns=["kind"])))
+    return "\n".join(parts)
+
+
 def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], out_dir: str | os.PathLike, *,
                       gates: Sequence[object] = (), runs: Sequence[ScenarioRuns] = (),
                       extra_sections: Sequence[tuple[str, str]] = (), title: str = "frictionbench report",

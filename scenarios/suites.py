@@ -5,6 +5,7 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     [suite]
     name = "quick"                  # members are named `<suite>/<labels joined by _>`
     description = "..."
+    allow_large = false             # optional: lift the resource guard's bounds (`scenarios.resources`)
 
     [base]                          # a scenario dict (`scenarios.load` schema) without `name`, shared by all
     [base.material]
@@ -80,6 +81,7 @@ class Suite:
     name: str
     description: str
     scenarios: tuple[SuiteMember, ...]
+    allow_large: bool = False
 
     def only(self, pattern: str | None) -> "Suite":
         """The members whose names match a shell pattern (`fnmatch`, e.g. `paper/cheese_*`); None keeps all.
@@ -145,24 +147,27 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
     base_dir: folder that relative `mesh.path` entries resolve against (default: the working directory).
     """
     try:
-        name, description, drafts = _expand(d)
+        name, description, allow_large, drafts = _expand(d)
     except ScenarioError as err:
         raise type(err)(err.field, err.value, f"{err.reason} [{source}]") from None
     members = tuple(
         SuiteMember(scenario_from_dict(draft.scenario, source=f"{source}, member {draft.name}", base_dir=base_dir),
                     draft.split, draft.labels)
         for draft in drafts)
-    return Suite(name=name, description=description, scenarios=members)
+    return Suite(name=name, description=description, scenarios=members, allow_large=allow_large)
 
 
-def _expand(d: object) -> tuple[str, str, list[_Draft]]:
+def _expand(d: object) -> tuple[str, str, bool, list[_Draft]]:
     """Check the suite's structure and build every member's scenario dict (not yet validated)."""
     t = _table(d, "", SUITE_KEYS)
-    header = _table(t.get("suite"), "suite", ("name", "description"))
+    header = _table(t.get("suite"), "suite", ("name", "description", "allow_large"))
     name = _label(header.get("name"), "suite.name")
     description = header.get("description", "")
     if not isinstance(description, str):
         raise ScenarioError("suite.description", description, "expected a string")
+    allow_large = header.get("allow_large", False)
+    if not isinstance(allow_large, bool):
+        raise ScenarioError("suite.allow_large", allow_large, "expected true or false")
     base = dict(_table(t.get("base", {}), "base", None))
     if "name" in base:
         raise ScenarioError("base.name", base["name"], "members are named by the suite, not by the base")
@@ -178,7 +183,7 @@ def _expand(d: object) -> tuple[str, str, list[_Draft]]:
         seen.add(draft.name)
     if not drafts:
         raise ScenarioError("axis", [], "the suite has no members: give at least one axis or extra")
-    return name, description, drafts
+    return name, description, allow_large, drafts
 
 
 def _product(suite: str, base: dict[str, Any], axes: Sequence[_Axis],
