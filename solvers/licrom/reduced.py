@@ -10,9 +10,9 @@ laws of solvers/physics at the surface sample points x_p = X_p + W_p q (gradient
 W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the step, as the full solver does.
 
 Schemes:
-- "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky),
-  Armijo backtracking with the full solver's round-off slack, and, for the barrier law, a step cap that keeps
-  every contact point above the plane. Converged when |W dq|_inf / h < tol * L over all mesh vertices (the
+- "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky), run
+  by the shared loop of `solvers.newton` (Armijo backtracking with its round-off slack, and, for the barrier law,
+  a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt). Converged when |W dq|_inf / h < tol * L over all mesh vertices (the
   full solver's measure; decoding dq costs one (3n x r) product).
 - "projected_gradient": the paper's scheme (PAPER.txt IV.B). The sample points are the vertices of the
   cubature tets, each carrying the cubature estimate of its lumped mass w_i = rho/4 sum_{c owns i} w_c V_c,
@@ -44,10 +44,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve, eigh
 
-from solvers.full.solver import ARMIJO_SLACK
 from solvers.licrom import kernels as K
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
+from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, minimise
 from solvers.physics import contact as pc
 from solvers.physics import friction as pf
 from solvers.physics.material import shape_gradients
@@ -365,40 +365,16 @@ class ReducedSolver:
             return 1.0
         rm, n = self.reduced, self.model.plane_normal
         phi = rm.point_positions(q) @ n - self.model.plane_offset
-        rate = (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n
-        approaching = rate < 0
-        if not approaching.any():
-            return 1.0
-        return float(min(1.0, 0.9 * np.min(phi[approaching] / -rate[approaching])))
+        return feasible_step(phi, (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n)
 
     def _initial_guess(self, st: _Step) -> np.ndarray:
         """q_hat, shortened for the barrier law so that no contact point crosses the plane."""
         return st.q_prev + self._max_feasible_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
-    def _newton(self, st: _Step) -> tuple[np.ndarray, int, float, int, bool]:
-        """Minimise E by Newton; returns (q, iterations, residual [m/s], halvings, converged)."""
-        q = self._initial_guess(st)
-        E = self.energy(q, st)
-        tol_v = self.tol * self.model.L
-        halvings, residual, it = 0, np.inf, 0
-        for it in range(1, self.max_iter + 1):
-            g, H = self.gradient_hessian(q, st)
-            dq = cho_solve(cho_factor(H), -g)
-            residual = self._velocity_norm(dq, st.h)
-            if residual < tol_v:
-                return q + self._max_feasible_step(q, dq) * dq, it, residual, halvings, True
-            g_dot = float(g @ dq)
-            alpha = self._max_feasible_step(q, dq)
-            while True:
-                E_new = self.energy(q + alpha * dq, st)
-                if np.isfinite(E_new) and E_new <= E + self.armijo * alpha * g_dot + ARMIJO_SLACK * abs(E):
-                    break
-                alpha *= 0.5
-                halvings += 1
-                if alpha < 2.0 ** -self.max_halvings:
-                    break
-            q, E = q + alpha * dq, E_new
-        return q, it, residual, halvings, False
+    def _newton(self, st: _Step) -> NewtonResult:
+        """Minimise E by the shared Newton loop (`solvers.newton`)."""
+        return minimise(_StepProblem(self, st), self._initial_guess(st), self.tol * self.model.L, self.max_iter,
+                        LineSearch(self.armijo, self.max_halvings))
 
     def _sample_gradient_rhs(self, q: np.ndarray, st: _Step) -> np.ndarray:
         """sum_i W_i^T g_i over the sample points: g_i the full-space gradient of E at the decoded points [N]."""
@@ -415,8 +391,8 @@ class ReducedSolver:
             rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
         return rhs
 
-    def _projected_gradient(self, st: _Step) -> tuple[np.ndarray, int, float, int, bool]:
-        """The paper's scheme; returns (q, iterations, residual [m/s], 0, converged)."""
+    def _projected_gradient(self, st: _Step) -> NewtonResult:
+        """The paper's scheme (no line search: halvings, linear iterations and stalls are 0)."""
         q = self._initial_guess(st)
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
@@ -427,8 +403,8 @@ class ReducedSolver:
             q = q + dq
             residual = self._velocity_norm(dq, st.h)
             if residual < tol_v:
-                return q, it, residual, 0, True
-        return q, it, residual, 0, False
+                return NewtonResult(q, it, residual, 0, 0, 0, True)
+        return NewtonResult(q, it, residual, 0, 0, 0, False)
 
     def projected_gradient_alpha_limit(self, state: State, dt: float) -> float:
         """Largest stable step size alpha of the projected-gradient scheme at `state` (projected to the subspace):
@@ -449,13 +425,40 @@ class ReducedSolver:
         latent = self.latent if state_in.x is self._x_out and self.latent is not None else self.init_state(state_in)
         st = self._begin(latent, dt)
         solve = self._newton if self.scheme == "newton" else self._projected_gradient
-        q, iters, residual, halvings, converged = solve(st)
+        res = solve(st)
+        q = res.y
         self.latent = ReducedState(q, (q - latent.q) / dt, latent.t + dt)
         self.q_history.append((self.latent.t, q.copy()))
         out = self.decode(self.latent)
         state_out.x, state_out.v, state_out.t = out.x, out.v, out.t
         self._x_out = state_out.x
-        return StepStats(iters, residual, halvings, converged, time.perf_counter() - t0)
+        return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
+                         stalls=res.stalls)
+
+
+class _StepProblem:
+    """One reduced step as a `solvers.newton.NewtonProblem` over the latent coordinates q (r,)."""
+
+    def __init__(self, solver: ReducedSolver, st: _Step) -> None:
+        self.solver, self.st = solver, st
+
+    def energy(self, q: np.ndarray) -> float:
+        """E(q) [J]."""
+        return self.solver.energy(q, self.st)
+
+    def direction(self, q: np.ndarray) -> Direction:
+        """Newton direction from the PSD-projected dense Hessian (Cholesky)."""
+        g, H = self.solver.gradient_hessian(q, self.st)
+        dq = cho_solve(cho_factor(H), -g)
+        return Direction(dq, float(g @ dq))
+
+    def step_norm(self, dq: np.ndarray) -> float:
+        """|W dq|_inf / h over all mesh vertices [m/s]."""
+        return self.solver._velocity_norm(dq, self.st.h)
+
+    def max_step(self, q: np.ndarray, dq: np.ndarray) -> float:
+        """The barrier law's feasible-step cap (1 for the penalty law)."""
+        return self.solver._max_feasible_step(q, dq)
 
 
 def simulate_reduced(model: Model, solver: ReducedSolver, state0: State | None = None, progress: bool = False,
