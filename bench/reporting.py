@@ -39,5 +39,6 @@ def build_report(out: str | Path, gates_file: str | Path = GATES_FILE, max_scena
                 traj, _ = store.load(row["run"])
                 if traj is not None:
                     others[f"{row['solver']}/{row['variant']}"] = traj
-        runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, plane=planes.get(scenario)))
+        runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, plane=planes.get(scenario),
+                                 reference_label=str(ref_rows.iloc[0]["solver"])))
     return write_report_html(results, out, gates=verdicts, runs=runs, title=f"frictionbench: {suite.name} suite")

@@ -96,8 +96,7 @@ class FullSpaceSolver:
         if linear not in ("direct", "cg"):
             raise ValueError(f"solver.linear = {linear!r}: expected 'direct', 'cg' or 'auto'")
         self.linear = linear
-        sc = model.scenario
-        self.law = sc.contact.law
+        self.law = model.contact.law
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
@@ -153,10 +152,10 @@ class FullSpaceSolver:
                 wp.launch(K.scatter_blocks_kernel, self.elem_blocks.shape[0], device=d,
                           inputs=[self.elem_blocks, self.blockmap, self.values])
         if m.has("contact"):
-            c = m.scenario.contact
+            c = m.contact
             out = [self.diag, self.grad, self.values, self.energy_buf, mode]
             if self.law == "penalty":
-                kd = c.damping if m.has("damping") else 0.0
+                kd = m.contact_damping
                 wp.launch(K.penalty_contact_kernel, m.points.size, device=d, inputs=[
                     x, self.x_prev, self.points, self.area, self.normal, m.plane_offset, c.stiffness, kd, h] + out)
             else:
@@ -165,8 +164,8 @@ class FullSpaceSolver:
                     c.barrier_distance] + out)
         if m.has("friction"):
             wp.launch(K.friction_kernel, m.points.size, device=d, inputs=[
-                x, self.x_prev, self.points, self.area, self.fn, self.normal, m.scenario.plane.friction,
-                m.scenario.contact.friction_stiffness, h, self.diag, self.grad, self.values, self.energy_buf, mode])
+                x, self.x_prev, self.points, self.area, self.fn, self.normal, m.friction,
+                m.contact.friction_stiffness, h, self.diag, self.grad, self.values, self.energy_buf, mode])
 
     def energy(self, x: wp.array, h: float, inertia: bool = True) -> float:
         """E(x) [J] of the current step's incremental potential."""
@@ -205,10 +204,9 @@ class FullSpaceSolver:
     # ----- one time step --------------------------------------------------------------------------------
     def _lag_normal_pressure(self, state: State) -> None:
         """Normal pressure at the start of the step (lagged friction, IPC), per contact point [Pa]."""
-        m, c = self.model, self.model.scenario.contact
-        kd = c.damping if m.has("damping") else 0.0
+        m, c = self.model, self.model.contact
         fn = lagged_pressure(self.law, state.x[m.points], state.v[m.points], m.plane_normal, m.plane_offset,
-                             c.stiffness, kd, c.barrier_stiffness, c.barrier_distance)
+                             c.stiffness, m.contact_damping, c.barrier_stiffness, c.barrier_distance)
         self.fn.assign(np.ascontiguousarray(fn))
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:

@@ -29,10 +29,10 @@ Schemes:
   a fixed 20 iterations leave the block nearly stuck (acceleration 0.57 instead of 3.21 m/s^2), and above the
   limit the iteration oscillates or diverges. Stops when |W dq|_inf / h < tol * L or after max_iter iterations.
 
-The solver works on the full `State` of solvers/simulate.py: it keeps (q, qdot) itself and writes
-state_out.x = X + W q, state_out.v = W qdot. A state_in that is not the one it produced last is first
-projected to the subspace (mass-weighted least squares). `q_history` holds (t, q) of every step since the last
-projection; `simulate_reduced` runs solvers.simulate.simulate and fills the trajectory's q per stored frame.
+The solver works on the full `State` of solvers/simulate.py, whose q and qdot fields carry the latent
+coordinates: it writes state_out.x = X + W q, state_out.v = W qdot, state_out.q, state_out.qdot. A state_in
+without latent coordinates (an initial state) is first projected to the subspace (mass-weighted least squares,
+`project`).
 """
 
 from __future__ import annotations
@@ -51,9 +51,7 @@ from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, m
 from solvers.physics import contact as pc
 from solvers.physics import friction as pf
 from solvers.physics.material import shape_gradients
-from solvers.simulate import simulate
 from solvers.step_stats import StepStats
-from solvers.trajectory import Trajectory
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
 """Jacobians B with at most this fraction of non-zeros and at least this many columns (local bases such as
@@ -217,7 +215,7 @@ class _SamplePoints:
         vertices, local = np.unique(tets, return_inverse=True)
         local = local.reshape(tets.shape)
         weight = np.zeros(vertices.size)
-        np.add.at(weight, local, np.repeat(m.scenario.material.density * rm.wV[:, None] / 4.0, 4, axis=1))
+        np.add.at(weight, local, np.repeat(m.density * rm.wV[:, None] / 4.0, 4, axis=1))
         Wv = rm.W[vertices].reshape(-1, rm.r)
         S = Wv.T @ (np.repeat(weight, 3)[:, None] * Wv)
         return cls(vertices, weight, local, shape_gradients(m.Dm_inv[rm.cub_ids]), S, cho_factor(S))
@@ -248,37 +246,19 @@ class ReducedSolver:
         self.armijo, self.max_halvings = armijo, max_halvings
         if name is not None:
             self.name = name
-        self.law = model.scenario.contact.law
+        self.law = model.contact.law
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
-        self.latent: ReducedState | None = None
-        self.q_history: list[tuple[float, np.ndarray]] = []
-        self._x_out: np.ndarray | None = None
 
     # ----- state mapping ---------------------------------------------------------------------------------
-    def init_state(self, state: State) -> ReducedState:
-        """Project a full state to the subspace (mass-weighted least squares of x - X and of v), make it the
-        current latent state and the last entry of `q_history` (entries at or after its time are dropped: a
-        retried step or a new run replaces them)."""
+    def project(self, state: State) -> State:
+        """The same state with its latent coordinates: mass-weighted least squares of x - X (q) and of v (qdot)."""
         rm = self.reduced
-        self.latent = ReducedState(rm.project(state.x - self.model.X), rm.project(state.v), state.t)
-        kept = [(t, q) for t, q in self.q_history if t < state.t - 1e-12 * max(1.0, abs(state.t))]
-        self.q_history = kept + [(state.t, self.latent.q.copy())]
-        self._x_out = state.x
-        return self.latent
+        return State(state.x, state.v, state.t, rm.project(state.x - self.model.X), rm.project(state.v))
 
     def decode(self, latent: ReducedState) -> State:
-        """The full state X + W q, W qdot of a latent state."""
+        """The full state X + W q, W qdot of a latent state, carrying q and qdot."""
         rm = self.reduced
-        return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t)
-
-    def frame_latents(self, times: np.ndarray) -> np.ndarray:
-        """q (F, r) at the given times (e.g. a trajectory's frame times), from `q_history`."""
-        times = np.asarray(times, dtype=float)
-        t_hist = np.array([t for t, _ in self.q_history])
-        idx = np.abs(t_hist[None, :] - times[:, None]).argmin(axis=1)
-        if np.any(np.abs(t_hist[idx] - times) > 1e-9 * max(1.0, float(np.max(np.abs(times))))):
-            raise KeyError("some requested times were not stepped since the last projection")
-        return np.stack([self.q_history[i][1] for i in idx])
+        return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t, latent.q, latent.qdot)
 
     # ----- incremental potential -------------------------------------------------------------------------
     def _point_terms(self, q: np.ndarray, st: _Step, order: int
@@ -287,11 +267,10 @@ class ReducedSolver:
         Hessian blocks (p, 3, 3) [N/m] (order 2)."""
         m, rm = self.model, self.reduced
         x = rm.point_positions(q)
-        c, n, d = m.scenario.contact, m.plane_normal, m.plane_offset
+        c, n, d = m.contact, m.plane_normal, m.plane_offset
         E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
         if self.law == "penalty":
-            kd = c.damping if m.has("damping") else 0.0
-            args = (x, st.x_prev, rm.area, n, d, c.stiffness, kd, st.h)
+            args = (x, st.x_prev, rm.area, n, d, c.stiffness, m.contact_damping, st.h)
             E += pc.penalty_energy(*args)
             if order >= 1:
                 g += pc.penalty_gradient(*args)
@@ -306,7 +285,7 @@ class ReducedSolver:
             if order == 2:
                 H += (kA * pc.barrier_d2(phi, c.barrier_distance))[:, None, None] * np.outer(n, n)
         if st.fn is not None:
-            args = (x, st.x_prev, rm.area, st.fn, n, m.scenario.plane.friction, c.friction_stiffness, st.h)
+            args = (x, st.x_prev, rm.area, st.fn, n, m.friction, c.friction_stiffness, st.h)
             E += pf.friction_energy(*args)
             if order >= 1:
                 g += pf.friction_gradient(*args)
@@ -348,11 +327,10 @@ class ReducedSolver:
         x_prev = rm.point_positions(latent.q)
         fn = None
         if m.has("friction"):
-            c = m.scenario.contact
+            c = m.contact
             v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
-            kd = c.damping if m.has("damping") else 0.0
-            fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness, kd,
-                                    c.barrier_stiffness, c.barrier_distance)
+            fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness,
+                                    m.contact_damping, c.barrier_stiffness, c.barrier_distance)
         return _Step(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
@@ -422,16 +400,15 @@ class ReducedSolver:
         """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics
         (`newton_iters` counts the iterations of either scheme; halvings are 0 for the projected gradient)."""
         t0 = time.perf_counter()
-        latent = self.latent if state_in.x is self._x_out and self.latent is not None else self.init_state(state_in)
+        if state_in.q is None:
+            state_in = self.project(state_in)
+        latent = ReducedState(state_in.q, state_in.qdot, state_in.t)
         st = self._begin(latent, dt)
         solve = self._newton if self.scheme == "newton" else self._projected_gradient
         res = solve(st)
         q = res.y
-        self.latent = ReducedState(q, (q - latent.q) / dt, latent.t + dt)
-        self.q_history.append((self.latent.t, q.copy()))
-        out = self.decode(self.latent)
-        state_out.x, state_out.v, state_out.t = out.x, out.v, out.t
-        self._x_out = state_out.x
+        out = self.decode(ReducedState(q, (q - latent.q) / dt, latent.t + dt))
+        state_out.x, state_out.v, state_out.t, state_out.q, state_out.qdot = out.x, out.v, out.t, out.q, out.qdot
         return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
                          stalls=res.stalls)
 
@@ -459,12 +436,3 @@ class _StepProblem:
     def max_step(self, q: np.ndarray, dq: np.ndarray) -> float:
         """The barrier law's feasible-step cap (1 for the penalty law)."""
         return self.solver._max_feasible_step(q, dq)
-
-
-def simulate_reduced(model: Model, solver: ReducedSolver, state0: State | None = None, progress: bool = False,
-                     meta: dict | None = None) -> tuple[Trajectory, list[StepStats]]:
-    """solvers.simulate.simulate with the reduced solver, plus the latent coordinates per stored frame in
-    `trajectory.q` (F, r)."""
-    traj, stats = simulate(model, solver, state0, progress, meta)
-    traj.q = solver.frame_latents(traj.t)
-    return traj, stats
