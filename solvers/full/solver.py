@@ -20,10 +20,10 @@ import warp as wp
 import warp.optim.linear as wpl
 import warp.sparse as wps
 
-from solvers.full import kernels as K
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, feasible_step, minimise
 from solvers.physics.contact import lagged_pressure
+from solvers.physics.terms import terms_of
 from solvers.step_stats import StepStats
 from solvers.warp_runtime import init_warp
 
@@ -99,6 +99,7 @@ class FullSpaceSolver:
         self.law = model.contact.law
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
+        self.terms = terms_of(model)
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
         self.tets = arr(model.tets.astype(np.int32), wp.vec4i)
         self.Dm_inv = arr(model.Dm_inv, wp.mat33d)
@@ -137,35 +138,8 @@ class FullSpaceSolver:
 
         inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
         """
-        m, d = self.model, self.device
-        wp.launch(K.inertia_gravity_kernel, m.n, device=d, inputs=[
-            x, self.x_hat, self.mass, 1.0 / h**2 if inertia else 0.0, self.gravity, self.diag, self.grad, self.values,
-            self.energy_buf, mode])
-        if m.has("elasticity"):
-            ins = [x, self.tets, self.Dm_inv, self.vol, m.mu_snh, m.lam_snh, self.alpha_snh]
-            if mode == 0:
-                wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [self.energy_buf])
-            else:
-                wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [self.grad])
-                self.elem_blocks.zero_()
-                wp.launch(K.elastic_hessian_kernel, m.tets.shape[0], device=d, inputs=ins + [self.elem_blocks])
-                wp.launch(K.scatter_blocks_kernel, self.elem_blocks.shape[0], device=d,
-                          inputs=[self.elem_blocks, self.blockmap, self.values])
-        if m.has("contact"):
-            c = m.contact
-            out = [self.diag, self.grad, self.values, self.energy_buf, mode]
-            if self.law == "penalty":
-                kd = m.contact_damping
-                wp.launch(K.penalty_contact_kernel, m.points.size, device=d, inputs=[
-                    x, self.x_prev, self.points, self.area, self.normal, m.plane_offset, c.stiffness, kd, h] + out)
-            else:
-                wp.launch(K.barrier_contact_kernel, m.points.size, device=d, inputs=[
-                    x, self.points, self.area, self.normal, m.plane_offset, c.barrier_stiffness,
-                    c.barrier_distance] + out)
-        if m.has("friction"):
-            wp.launch(K.friction_kernel, m.points.size, device=d, inputs=[
-                x, self.x_prev, self.points, self.area, self.fn, self.normal, m.friction,
-                m.contact.friction_stiffness, h, self.diag, self.grad, self.values, self.energy_buf, mode])
+        for term in self.terms:
+            term.launch(self, x, h, mode, inertia)
 
     def energy(self, x: wp.array, h: float, inertia: bool = True) -> float:
         """E(x) [J] of the current step's incremental potential."""

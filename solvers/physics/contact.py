@@ -7,11 +7,24 @@ the start of the step (`damped`, lagged like friction's normal force, so that th
 continuous; gating on the current penetration would make it jump where a point crosses the plane).
 Barrier law (IPC): energy density kappa b(phi), b(d) = -(d - dhat)^2 log(d / dhat) for 0 < d < dhat, else 0.
 Arrays: x (p, 3) point positions, area (p,) [m^2]; energies in J, gradients (p, 3) in N, Hessians (p, 3, 3).
+The terms `PenaltyContact`, `ContactDamping` (the penalty law's damping part) and `BarrierContact` evaluate them
+at a model's contact points.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+import scipy.sparse as sp
+
+from solvers.physics.terms import StepData, Term, point_blocks, register, scatter_points
+
+if TYPE_CHECKING:
+    import warp as wp
+
+    from solvers.full.solver import FullSpaceSolver
+    from solvers.model import Model
 
 
 #: Penetration scale of the automatic penalty stiffness, as a fraction of the body size L.
@@ -108,3 +121,102 @@ def lagged_pressure(law: str, x, v, normal, offset, ke, kd, kappa, dhat) -> np.n
         return normal_pressure(x, v, normal, offset, ke, kd)
     return barrier_pressure(x, normal, offset, kappa, dhat)
 
+
+
+class _Penalty(Term):
+    """The penalty law with stiffness `_ke(model)` and damping `_kd(model)` at the model's contact points."""
+
+    def _ke(self, model: Model) -> float:
+        return 0.0
+
+    def _kd(self, model: Model) -> float:
+        return 0.0
+
+    def _args(self, model: Model, step: StepData) -> tuple:
+        p = model.points
+        return (step.x_prev[p], model.area, model.plane_normal, model.plane_offset, self._ke(model),
+                self._kd(model), step.h)
+
+    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
+        return penalty_energy(x[model.points], *self._args(model, step))
+
+    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
+        return scatter_points(model, penalty_gradient(x[model.points], *self._args(model, step)))
+
+    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
+        return point_blocks(model, penalty_hessian(x[model.points], *self._args(model, step)))
+
+    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+        import warp as wp
+
+        from solvers.full import kernels as K
+
+        m = solver.model
+        wp.launch(K.penalty_contact_kernel, m.points.size, device=solver.device, inputs=[
+            x, solver.x_prev, solver.points, solver.area, solver.normal, m.plane_offset, self._ke(m), self._kd(m), h,
+            solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
+
+
+@register
+class PenaltyContact(_Penalty):
+    """1/2 k_e c^2 per unit area, c the penetration (the paper's soft contact)."""
+
+    name = "penalty_contact"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("contact") and model.contact.law == "penalty"
+
+    def _ke(self, model: Model) -> float:
+        return model.contact.stiffness
+
+
+@register
+class BarrierContact(Term):
+    """kappa b(phi) per unit area, the IPC log barrier."""
+
+    name = "barrier_contact"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("contact") and model.contact.law == "barrier"
+
+    def _kA_phi(self, model: Model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (model.contact.barrier_stiffness * model.area,
+                signed_distance(x[model.points], model.plane_normal, model.plane_offset))
+
+    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
+        kA, phi = self._kA_phi(model, x)
+        return float(kA @ barrier(phi, model.contact.barrier_distance))
+
+    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
+        kA, phi = self._kA_phi(model, x)
+        return scatter_points(model, (kA * barrier_d1(phi, model.contact.barrier_distance))[:, None]
+                              * model.plane_normal)
+
+    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
+        kA, phi = self._kA_phi(model, x)
+        n = model.plane_normal
+        return point_blocks(model, (kA * barrier_d2(phi, model.contact.barrier_distance))[:, None, None]
+                            * np.outer(n, n))
+
+    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+        import warp as wp
+
+        from solvers.full import kernels as K
+
+        m, c = solver.model, solver.model.contact
+        wp.launch(K.barrier_contact_kernel, m.points.size, device=solver.device, inputs=[
+            x, solver.points, solver.area, solver.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance,
+            solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
+
+
+@register
+class ContactDamping(_Penalty):
+    """h k_d / 2 max(0, -v.n)^2 per unit area at the points penetrating at the start of the step."""
+
+    name = "damping"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("damping")
+
+    def _kd(self, model: Model) -> float:
+        return model.contact_damping
