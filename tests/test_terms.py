@@ -11,7 +11,9 @@ import pytest
 import scipy.sparse as sp
 
 from scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from solvers.baselines import affine_basis
 from solvers.full.solver import FullSpaceSolver
+from solvers.licrom.reduced import ReducedSolver
 from solvers.model import Model, build_model, initial_state
 from solvers.physics import terms as T
 from solvers.physics.contact import lagged_pressure
@@ -84,7 +86,7 @@ def test_the_sum_of_the_references_is_the_warp_evaluation(scene):
     assert np.abs(solver.pattern.to_scipy(solver.values.numpy()).toarray() - H).max() <= 1e-10 * np.abs(H).max()
 
 
-class Push(T.Term):
+class Push(T.BodyTerm):
     """A test term: a uniform force per unit mass f (3,) [m/s^2], potential -sum_i m_i f . x_i."""
 
     name = "push"
@@ -111,15 +113,30 @@ class Push(T.Term):
             x, solver.x_hat, solver.mass, 0.0, wp.vec3d(*self.f), solver.diag, solver.grad, solver.values,
             solver.energy_buf, mode])
 
+    def reduced(self, rs, q, st, order):
+        f_r = np.einsum("n,nak,a->k", rs.model.mass, rs.reduced.W, self.f)
+        return -float(f_r @ q), (-f_r if order >= 1 else None), None
 
-def test_a_registered_term_is_picked_up_by_the_full_solver(block, monkeypatch):
+    def sample_gradient(self, rs, q, st, u, u_hat):
+        return rs.samples.weight[:, None] * -self.f
+
+
+@pytest.mark.parametrize("solver", ["full", "reduced-newton", "reduced-pg"])
+def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solver):
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Push)
+    # no elasticity: the projected-gradient scheme at alpha = 1 is unstable for the stiff strain modes
     sc = Scenario(name="pushed_fall", mesh=MeshSpec("block", "coarse"), plane=None,
-                  time=TimeSpec(dt=0.01, duration=0.1))
+                  time=TimeSpec(dt=0.01, duration=0.1), effects=Effects(elasticity=False))
     model = build_model(sc, block)
     assert [t.name for t in T.terms_of(model)][-1] == "push"
-    traj, stats = simulate(model, FullSpaceSolver(model))
+    if solver == "full":
+        stepper, state0 = FullSpaceSolver(model), None
+    else:
+        scheme = "newton" if solver == "reduced-newton" else "projected_gradient"
+        stepper = ReducedSolver(model, affine_basis(model.X), scheme=scheme, alpha=1.0, tol=1e-9, max_iter=5)
+        state0 = stepper.project(initial_state(model))
+    traj, stats = simulate(model, stepper, state0)
     n = np.arange(traj.n_frames)
     drift = 0.01**2 * (n * (n + 1) / 2)  # backward Euler under a constant acceleration a: a h^2 n (n + 1) / 2
     assert np.abs(traj.x[:, :, 0] - traj.x[0, :, 0] - 2.0 * drift[:, None]).max() < 1e-10

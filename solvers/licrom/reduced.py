@@ -49,8 +49,8 @@ from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, minimise
 from solvers.physics import contact as pc
-from solvers.physics import friction as pf
 from solvers.physics.material import shape_gradients
+from solvers.physics.terms import BodyTerm, PointTerm, terms_of
 from solvers.step_stats import StepStats
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
@@ -180,7 +180,7 @@ def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.nda
 
 
 @dataclass
-class _Step:
+class ReducedStep:
     """Per-step constants: dt h [s], q^n and q_hat (r,), contact points at the start x_prev (p, 3) [m] and the
     lagged normal pressure fn (p,) [Pa] (None without friction)."""
 
@@ -248,6 +248,12 @@ class ReducedSolver:
             self.name = name
         self.law = model.contact.law
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
+        terms = terms_of(model)
+        missing = [t.name for t in terms if not isinstance(t, (BodyTerm, PointTerm))]
+        if missing:
+            raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
+        self.body_terms = [t for t in terms if isinstance(t, BodyTerm)]
+        self.point_terms = [t for t in terms if isinstance(t, PointTerm)]
 
     # ----- state mapping ---------------------------------------------------------------------------------
     def project(self, state: State) -> State:
@@ -261,57 +267,42 @@ class ReducedSolver:
         return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t, latent.q, latent.qdot)
 
     # ----- incremental potential -------------------------------------------------------------------------
-    def _point_terms(self, q: np.ndarray, st: _Step, order: int
+    def _point_terms(self, q: np.ndarray, st: ReducedStep, order: int
                      ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
-        """Contact and friction at the sample points: energy [J], per-point gradient (p, 3) [N] (order >= 1) and
-        Hessian blocks (p, 3, 3) [N/m] (order 2)."""
+        """The point terms (contact, damping, friction) at the sample points: energy [J], per-point gradient (p, 3)
+        [N] (order >= 1) and Hessian blocks (p, 3, 3) [N/m] (order 2)."""
         m, rm = self.model, self.reduced
         x = rm.point_positions(q)
-        c, n, d = m.contact, m.plane_normal, m.plane_offset
         E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
-        if self.law == "penalty":
-            args = (x, st.x_prev, rm.area, n, d, c.stiffness, m.contact_damping, st.h)
-            E += pc.penalty_energy(*args)
+        for term in self.point_terms:
+            e, gp, Hp = term.at_points(m, x, st.x_prev, rm.area, st.fn, st.h, order)
+            E += e
             if order >= 1:
-                g += pc.penalty_gradient(*args)
+                g += gp
             if order == 2:
-                H += pc.penalty_hessian(*args)
-        else:
-            phi = pc.signed_distance(x, n, d)
-            kA = c.barrier_stiffness * rm.area
-            E += float(kA @ pc.barrier(phi, c.barrier_distance))
-            if order >= 1:
-                g += (kA * pc.barrier_d1(phi, c.barrier_distance))[:, None] * n
-            if order == 2:
-                H += (kA * pc.barrier_d2(phi, c.barrier_distance))[:, None, None] * np.outer(n, n)
-        if st.fn is not None:
-            args = (x, st.x_prev, rm.area, st.fn, n, m.friction, c.friction_stiffness, st.h)
-            E += pf.friction_energy(*args)
-            if order >= 1:
-                g += pf.friction_gradient(*args)
-            if order == 2:
-                H += pf.friction_hessian(*args)
+                H += Hp
         return E, (g if order >= 1 else None), (H if order == 2 else None)
 
-    def energy(self, q: np.ndarray, st: _Step) -> float:
-        """E(q) [J] of the step's incremental potential (up to a constant)."""
-        d = q - st.q_hat
-        E = 0.5 / st.h**2 * float(d @ self.reduced.M_r @ d) - float(self.reduced.gravity_q @ q)
-        if self.model.has("elasticity"):
-            E += self.reduced.elastic(q, K.ENERGY)[0]
-        if self.model.has("contact"):
+    def energy(self, q: np.ndarray, st: ReducedStep) -> float:
+        """E(q) [J] of the step's incremental potential (up to a constant): the body terms' reduced energies, then
+        the point terms at the sample points."""
+        E = 0.0
+        for term in self.body_terms:
+            E += term.reduced(self, q, st, 0)[0]
+        if self.point_terms:
             E += self._point_terms(q, st, 0)[0]
         return E
 
-    def gradient_hessian(self, q: np.ndarray, st: _Step) -> tuple[np.ndarray, np.ndarray]:
+    def gradient_hessian(self, q: np.ndarray, st: ReducedStep) -> tuple[np.ndarray, np.ndarray]:
         """dE/dq (r,) [N] and the PSD-projected d2E/dq2 (r, r) [N/m]."""
         rm = self.reduced
-        g = rm.M_r @ (q - st.q_hat) / st.h**2 - rm.gravity_q
-        H = rm.M_r / st.h**2
-        if self.model.has("elasticity"):
-            _, ge, He = rm.elastic(q, K.HESSIAN)
-            g, H = g + ge, H + He
-        if self.model.has("contact"):
+        g, H = np.zeros(rm.r), np.zeros((rm.r, rm.r))
+        for term in self.body_terms:
+            _, gt, Ht = term.reduced(self, q, st, 2)
+            g = g + gt
+            if Ht is not None:
+                H = H + Ht
+        if self.point_terms:
             _, gp, Hp = self._point_terms(q, st, 2)
             g = g + rm.Wp.reshape(-1, rm.r).T @ gp.ravel()
             active = np.flatnonzero(np.abs(Hp).sum(axis=(1, 2)) > 0.0)
@@ -321,7 +312,7 @@ class ReducedSolver:
         return g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
-    def _begin(self, latent: ReducedState, h: float) -> _Step:
+    def _begin(self, latent: ReducedState, h: float) -> ReducedStep:
         """Per-step constants; the friction normal pressure is lagged from the start of the step."""
         m, rm = self.model, self.reduced
         x_prev = rm.point_positions(latent.q)
@@ -331,7 +322,7 @@ class ReducedSolver:
             v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
             fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness,
                                     m.contact_damping, c.barrier_stiffness, c.barrier_distance)
-        return _Step(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
+        return ReducedStep(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
         """|W dq|_inf / h over all mesh vertices [m/s]."""
@@ -345,31 +336,29 @@ class ReducedSolver:
         phi = rm.point_positions(q) @ n - self.model.plane_offset
         return feasible_step(phi, (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n)
 
-    def _initial_guess(self, st: _Step) -> np.ndarray:
+    def _initial_guess(self, st: ReducedStep) -> np.ndarray:
         """q_hat, shortened for the barrier law so that no contact point crosses the plane."""
         return st.q_prev + self._max_feasible_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
-    def _newton(self, st: _Step) -> NewtonResult:
+    def _newton(self, st: ReducedStep) -> NewtonResult:
         """Minimise E by the shared Newton loop (`solvers.newton`)."""
         return minimise(_StepProblem(self, st), self._initial_guess(st), self.tol * self.model.L, self.max_iter,
                         LineSearch(self.armijo, self.max_halvings))
 
-    def _sample_gradient_rhs(self, q: np.ndarray, st: _Step) -> np.ndarray:
+    def _sample_gradient_rhs(self, q: np.ndarray, st: ReducedStep) -> np.ndarray:
         """sum_i W_i^T g_i over the sample points: g_i the full-space gradient of E at the decoded points [N]."""
-        m, rm, pts = self.model, self.reduced, self.samples
+        rm, pts = self.reduced, self.samples
         Wv = rm.W[pts.vertices]
         u, u_hat = (Wv.reshape(-1, rm.r) @ q).reshape(-1, 3), (Wv.reshape(-1, rm.r) @ st.q_hat).reshape(-1, 3)
-        grad = pts.weight[:, None] * ((u - u_hat) / st.h**2 - (m.gravity if m.has("gravity") else 0.0))
-        if m.has("elasticity"):
-            _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
-            forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, pts.grad_shape)
-            np.add.at(grad, pts.local, forces)
+        grad = np.zeros_like(u)
+        for term in self.body_terms:
+            grad += term.sample_gradient(self, q, st, u, u_hat)
         rhs = Wv.reshape(-1, rm.r).T @ grad.ravel()
-        if m.has("contact"):
+        if self.point_terms:
             rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
         return rhs
 
-    def _projected_gradient(self, st: _Step) -> NewtonResult:
+    def _projected_gradient(self, st: ReducedStep) -> NewtonResult:
         """The paper's scheme (no line search: halvings, linear iterations and stalls are 0)."""
         q = self._initial_guess(st)
         tol_v = self.tol * self.model.L
@@ -416,7 +405,7 @@ class ReducedSolver:
 class _StepProblem:
     """One reduced step as a `solvers.newton.NewtonProblem` over the latent coordinates q (r,)."""
 
-    def __init__(self, solver: ReducedSolver, st: _Step) -> None:
+    def __init__(self, solver: ReducedSolver, st: ReducedStep) -> None:
         self.solver, self.st = solver, st
 
     def energy(self, q: np.ndarray) -> float:

@@ -16,9 +16,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
-from solvers.physics.terms import StepData, Term, point_blocks, register, scatter_points
+from solvers.physics.terms import Evaluation, PointTerm, register
 
 if TYPE_CHECKING:
     import warp as wp
@@ -123,8 +122,8 @@ def lagged_pressure(law: str, x, v, normal, offset, ke, kd, kappa, dhat) -> np.n
 
 
 
-class _Penalty(Term):
-    """The penalty law with stiffness `_ke(model)` and damping `_kd(model)` at the model's contact points."""
+class _Penalty(PointTerm):
+    """The penalty law with stiffness `_ke(model)` and damping `_kd(model)`."""
 
     def _ke(self, model: Model) -> float:
         return 0.0
@@ -132,19 +131,11 @@ class _Penalty(Term):
     def _kd(self, model: Model) -> float:
         return 0.0
 
-    def _args(self, model: Model, step: StepData) -> tuple:
-        p = model.points
-        return (step.x_prev[p], model.area, model.plane_normal, model.plane_offset, self._ke(model),
-                self._kd(model), step.h)
-
-    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
-        return penalty_energy(x[model.points], *self._args(model, step))
-
-    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
-        return scatter_points(model, penalty_gradient(x[model.points], *self._args(model, step)))
-
-    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
-        return point_blocks(model, penalty_hessian(x[model.points], *self._args(model, step)))
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self._ke(model), self._kd(model), h)
+        return (penalty_energy(*args), penalty_gradient(*args) if order >= 1 else None,
+                penalty_hessian(*args) if order == 2 else None)
 
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         import warp as wp
@@ -171,7 +162,7 @@ class PenaltyContact(_Penalty):
 
 
 @register
-class BarrierContact(Term):
+class BarrierContact(PointTerm):
     """kappa b(phi) per unit area, the IPC log barrier."""
 
     name = "barrier_contact"
@@ -179,24 +170,15 @@ class BarrierContact(Term):
     def applies(self, model: Model) -> bool:
         return model.has("contact") and model.contact.law == "barrier"
 
-    def _kA_phi(self, model: Model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return (model.contact.barrier_stiffness * model.area,
-                signed_distance(x[model.points], model.plane_normal, model.plane_offset))
-
-    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
-        kA, phi = self._kA_phi(model, x)
-        return float(kA @ barrier(phi, model.contact.barrier_distance))
-
-    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
-        kA, phi = self._kA_phi(model, x)
-        return scatter_points(model, (kA * barrier_d1(phi, model.contact.barrier_distance))[:, None]
-                              * model.plane_normal)
-
-    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
-        kA, phi = self._kA_phi(model, x)
-        n = model.plane_normal
-        return point_blocks(model, (kA * barrier_d2(phi, model.contact.barrier_distance))[:, None, None]
-                            * np.outer(n, n))
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        n, dhat = model.plane_normal, model.contact.barrier_distance
+        phi = signed_distance(x, n, model.plane_offset)
+        kA = model.contact.barrier_stiffness * area
+        E = float(kA @ barrier(phi, dhat))
+        g = (kA * barrier_d1(phi, dhat))[:, None] * n if order >= 1 else None
+        H = (kA * barrier_d2(phi, dhat))[:, None, None] * np.outer(n, n) if order == 2 else None
+        return E, g, H
 
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         import warp as wp

@@ -14,9 +14,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
-from solvers.physics.terms import StepData, Term, point_blocks, register, scatter_points
+from solvers.physics.terms import Evaluation, PointTerm, register
 
 if TYPE_CHECKING:
     import warp as wp
@@ -97,26 +96,19 @@ def creep_speed(area: np.ndarray, fn: np.ndarray, mu: float, kf: float, load: fl
 
 
 @register
-class Friction(Term):
-    """The lagged Coulomb friction potential at the contact points (normal pressure StepData.fn)."""
+class Friction(PointTerm):
+    """The lagged Coulomb friction potential at the contact points (normal pressure `fn`)."""
 
     name = "friction"
 
     def applies(self, model: Model) -> bool:
         return model.has("friction")
 
-    def _args(self, model: Model, step: StepData) -> tuple:
-        return (step.x_prev[model.points], model.area, step.fn, model.plane_normal, model.friction,
-                model.contact.friction_stiffness, step.h)
-
-    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
-        return friction_energy(x[model.points], *self._args(model, step))
-
-    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
-        return scatter_points(model, friction_gradient(x[model.points], *self._args(model, step)))
-
-    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
-        return point_blocks(model, friction_hessian(x[model.points], *self._args(model, step)))
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        args = (x, x_prev, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)
+        return (friction_energy(*args), friction_gradient(*args) if order >= 1 else None,
+                friction_hessian(*args) if order == 2 else None)
 
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         import warp as wp

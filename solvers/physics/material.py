@@ -14,12 +14,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.physics.terms import StepData, Term, register
+from solvers.physics.terms import BodyTerm, Evaluation, StepData, register
 
 if TYPE_CHECKING:
     import warp as wp
 
     from solvers.full.solver import FullSpaceSolver
+    from solvers.licrom.reduced import ReducedSolver, ReducedStep
     from solvers.model import Model
 
 
@@ -144,7 +145,7 @@ def element_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: n
 
 
 @register
-class Elasticity(Term):
+class Elasticity(BodyTerm):
     """sum_e V_e Psi(F_e), stable Neo-Hookean; the Hessian projected per element."""
 
     name = "elasticity"
@@ -180,3 +181,21 @@ class Elasticity(Term):
             wp.launch(K.elastic_hessian_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.elem_blocks])
             wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
                       inputs=[solver.elem_blocks, solver.blockmap, solver.values])
+
+    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
+        """The cubature elastic energy with its gradient and PSD-projected Hessian (`ReducedModel.elastic`)."""
+        from solvers.licrom import kernels as K
+
+        return rs.reduced.elastic(q, (K.ENERGY, K.STRESS, K.HESSIAN)[order])
+
+    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
+                        u_hat: np.ndarray) -> np.ndarray:
+        """The cubature tets' elastic forces w_c V_c P_c g_a on their vertices."""
+        from solvers.licrom import kernels as K
+
+        m, rm, pts = rs.model, rs.reduced, rs.samples
+        _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
+        forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, pts.grad_shape)
+        out = np.zeros((pts.vertices.size, 3))
+        np.add.at(out, pts.local, forces)
+        return out

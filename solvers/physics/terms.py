@@ -4,8 +4,12 @@ contact damping in contact.py, friction in friction.py).
 
 A term holds its pure numpy reference (energy [J], gradient (n, 3) [N], PSD-projected Hessian (3n, 3n) [N/m] over
 the vertex positions x (n, 3) [m]) and its evaluation for each backend: `launch` adds it with the full-space warp
-kernels into a `solvers.full.solver.FullSpaceSolver`'s buffers. `applies(model)` says whether a scene has it; a
-solver takes `terms_of(model)` and loops over them. Adding a term is one module that registers its class here
+kernels into a `solvers.full.solver.FullSpaceSolver`'s buffers; for the reduced solver
+(`solvers.licrom.reduced.ReducedSolver`), a body term gives its energy, gradient and Hessian in the latent
+coordinates (`reduced`) and its gradient at the projected-gradient scheme's sample vertices (`sample_gradient`),
+while a `PointTerm` (contact, damping, friction) is evaluated at contact sample points (`at_points`), which the
+reduced solver sums and projects once. `applies(model)` says whether a scene has it; a solver takes
+`terms_of(model)` and loops over them. Adding a term is one module that registers its class here
 (`register`) and is listed in `_MODULES`, plus its tests.
 """
 
@@ -23,7 +27,12 @@ if TYPE_CHECKING:
     import warp as wp
 
     from solvers.full.solver import FullSpaceSolver
+    from solvers.licrom.reduced import ReducedSolver, ReducedStep
     from solvers.model import Model
+
+
+#: Energy [J], gradient and Hessian of a term (None where not asked for).
+Evaluation = tuple[float, np.ndarray | None, np.ndarray | None]
 
 #: The modules that define terms, in the order their terms are summed.
 _MODULES = ("solvers.physics.inertia", "solvers.physics.material", "solvers.physics.contact",
@@ -69,6 +78,44 @@ class Term(ABC):
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         """Add the term at x with the full-space kernels: mode 0 its energy into solver.energy_buf, mode 1 its
         gradient into solver.grad and Hessian blocks into solver.values."""
+
+
+class BodyTerm(Term):
+    """A term over the whole body (inertia, gravity, elasticity): its reduced evaluations."""
+
+    @abstractmethod
+    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
+        """Energy [J], gradient (r,) [N] (order >= 1) and Hessian (r, r) [N/m] (order 2, None where it is zero)
+        at latent coordinates q (r,), with the reduced step's constants st."""
+
+    @abstractmethod
+    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
+                        u_hat: np.ndarray) -> np.ndarray:
+        """The full-space gradient (k, 3) [N] at the projected-gradient scheme's sample vertices, whose
+        displacements are u and u_hat (k, 3) [m] at q and q_hat."""
+
+
+class PointTerm(Term):
+    """A term per contact point (contact, damping, friction): evaluated at any sample points."""
+
+    @abstractmethod
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        """Energy [J], gradient (p, 3) [N] (order >= 1) and Hessian blocks (p, 3, 3) [N/m] (order 2) at points x
+        (p, 3) [m] with start-of-step positions x_prev, area weights area (p,) [m^2], lagged pressure fn (p,)."""
+
+    def _at(self, model: Model, step: StepData, x: np.ndarray, order: int) -> Evaluation:
+        p = model.points
+        return self.at_points(model, x[p], step.x_prev[p], model.area, step.fn, step.h, order)
+
+    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
+        return self._at(model, step, x, 0)[0]
+
+    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
+        return scatter_points(model, self._at(model, step, x, 1)[1])
+
+    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
+        return point_blocks(model, self._at(model, step, x, 2)[2])
 
 
 def register(term_class: type[Term]) -> type[Term]:
