@@ -245,11 +245,11 @@ def with_remesh_ratio(rows: list[dict]) -> list[dict]:
 
 def with_ref_dt_change(rows: list[dict]) -> list[dict]:
     """Rows with `ref_dt_change` on every row of a scenario that has a run of the reference's solver on the
-    reference's mesh at a smaller time step than the reference's: that run's pos_rmse_rel against the reference (the smallest such dt
-    where there are several). It is how far the reference moves when its time step is refined: where the error
-    shrinks with dt the reference's own time-discretisation error is at least half of it, and about twice it once
-    backward Euler is in its first-order range; a reduced model's error of that order is within the reference's
-    own accuracy."""
+    reference's mesh at a smaller time step than the reference's: that run's pos_rmse_rel against the reference
+    (the smallest such dt where there are several). It is how far the reference moves when its time step is
+    refined: where the error shrinks with dt the reference's own time-discretisation error is at least half of it,
+    and about twice it once backward Euler is in its first-order range; a reduced model's error of that order is
+    within the reference's own accuracy."""
     refs = {r["scenario"]: r for r in rows if r.get("variant") == "reference"}
     ref_dt = {name: r.get("dt") or 0.0 for name, r in refs.items()}
     finer = [r for r in rows if r["scenario"] in refs and r.get("solver") == refs[r["scenario"]].get("solver")

@@ -2,10 +2,10 @@
 
 A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats are a `StepStats`
 (`solvers.step_stats`); where its states carry latent coordinates q (every stored frame's, the initial state's
-included), the trajectory stores them. A step that fails (Newton not converged, or a non-finite state) is redone from the same
-start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the attempts'
-iterations and wall time and counts the retries. A step still non-finite after that ends the run: the loop raises
-`Diverged` carrying what was computed so far.
+included), the trajectory stores them. A step that fails (Newton not converged, or a non-finite state) is redone
+from the same start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the
+attempts' iterations and wall time and counts the retries. A step still non-finite after that ends the run: the
+loop raises `Diverged` carrying what was computed so far.
 """
 
 from __future__ import annotations

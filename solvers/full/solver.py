@@ -2,10 +2,10 @@
 
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
 the vertex positions x (n, 3), x_hat = x^n + h v^n (DESIGN.md section 4). Only the terms the scene calls for are
-built (`Model.terms`); an absent term launches no kernel. Newton directions come from the projected (PSD)
-Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E, in the shared
-loop of `solvers.newton`; the barrier law also caps the step so that no contact point crosses the plane. Convergence is measured in velocity units:
-|dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal.
+built (`solvers.physics.terms.terms_of`); an absent term launches no kernel. Newton directions come from the
+projected (PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E,
+in the shared loop of `solvers.newton`; the barrier law also caps the step so that no contact point crosses the
+plane. Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal.
 """
 
 from __future__ import annotations
@@ -134,7 +134,8 @@ class FullSpaceSolver:
 
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
     def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:
-        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x.
+        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x: each of the
+        model's terms (`solvers.physics.terms`) launches its kernels.
 
         inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
         """

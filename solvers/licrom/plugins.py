@@ -3,9 +3,10 @@
 
 Each `setup(model)` builds a `ReducedSolver` (untimed); where a solver needs the suite's training data, its
 `prepare(shape, trajectories, out_dir, suite)` trains once per (mesh shape, settings), caches the artefact under
-`out_dir/<key>/` (the run's output folder), and returns the run parameters `shape` and the artefact's path. Cubature parameter: `all` (every tet, weight 1), `uniform:N` or `optimized:N`
-(An, Kim & James on the training states; on a mesh other than the training mesh it falls back to uniform:N, as
-LiCROM does for remeshing, and the run's stats say so).
+`out_dir/<key>/` (the run's output folder), and returns the run parameters `shape` and the artefact's path.
+Cubature parameter: `all` (every tet, weight 1), `uniform:N` or `optimized:N` (An, Kim & James on the training
+states; on a mesh other than the training mesh it falls back to uniform:N, as LiCROM does for remeshing, and the
+run's stats say so).
 """
 
 from __future__ import annotations

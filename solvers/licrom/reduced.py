@@ -12,8 +12,9 @@ W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the s
 Schemes:
 - "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky), run
   by the shared loop of `solvers.newton` (Armijo backtracking with its round-off slack, and, for the barrier law,
-  a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt). Converged when |W dq|_inf / h < tol * L over all mesh vertices (the
-  full solver's measure; decoding dq costs one (3n x r) product).
+  a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt).
+  Converged when |W dq|_inf / h < tol * L over all mesh vertices (the full solver's measure; decoding dq costs
+  one (3n x r) product).
 - "projected_gradient": the paper's scheme (PAPER.txt IV.B). The sample points are the vertices of the
   cubature tets, each carrying the cubature estimate of its lumped mass w_i = rho/4 sum_{c owns i} w_c V_c,
   plus the contact points (force only, no mass). Every iteration decodes the points, evaluates the full-space
