@@ -42,7 +42,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     """Print suites (with member counts), catalogue meshes and solvers."""
     from scenarios.meshes import catalogue
     from scenarios.suites import list_suites, load_suite
-    from solvers.registry import SOLVERS
+    from solvers.registry import solver_names
 
     print("suites:")
     for name in list_suites():
@@ -55,7 +55,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     for name, res in catalogue().items():
         print(f"  {name:8s} {', '.join(res)}")
     print("solvers:")
-    for name in SOLVERS:
+    for name in solver_names():
         print(f"  {name}")
     return 0
 
@@ -69,13 +69,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     check_runs([(scenario, parse_mesh(args.mesh) or scenario.mesh)], allow_large=args.allow_large)
 
     from reports.export import export_vtu_series
-    from solvers.run import run_scenario
     from scenarios.atomic import write_json_atomic
+    from solvers.registry import get_solver
+    from solvers.run import run_scenario
 
     params = {}
     if args.model:
-        if args.solver != "licrom":
-            raise ScenarioError("--model", args.model, "a checkpoint goes with --solver licrom")
+        if "checkpoint" not in get_solver(args.solver).parameters:
+            raise ScenarioError("--model", args.model, f"solver {args.solver!r} takes no checkpoint")
         params["checkpoint"] = args.model
     traj, stats = run_scenario(scenario, args.solver, args.device, params, parse_mesh(args.mesh),
                                progress=not args.quiet)
@@ -94,18 +95,26 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def parse_variants(spec: str | None, epochs: int | None = None, suite: str | None = None) -> list:
     """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
-    suite's own set in SUITE_DEFAULTS, else DEFAULT); `epochs` overrides the training epochs of the variants that
-    train."""
+    suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
+    parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
+    training epochs of the variants that train."""
     from dataclasses import replace
 
+    from bench.runner import REFERENCE, Variant
     from bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS
+    from solvers.registry import solver_names
 
     out = []
-    for name in [s for s in (spec or SUITE_DEFAULTS.get(suite or "", DEFAULT)).split(",") if s and s != "full"]:
-        if name not in VARIANTS:
-            raise ScenarioError("--solvers", name, f"unknown variant; known: {sorted(VARIANTS)}")
+    for name in [s for s in (spec or SUITE_DEFAULTS.get(suite or "", DEFAULT)).split(",") if s and s != REFERENCE]:
+        if name in VARIANTS:
+            variants = VARIANTS[name]
+        elif name in solver_names():
+            variants = [Variant(name)]
+        else:
+            raise ScenarioError("--solvers", name, "unknown variant set or solver; known: "
+                                f"{sorted(set(VARIANTS) | set(solver_names()))}")
         out.extend(replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
-                   for v in VARIANTS[name])
+                   for v in variants)
     return out
 
 
@@ -136,7 +145,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     """Train a LiCROM model on the full-space trajectories of a suite's training split (generated and cached)."""
-    from bench.runner import Task, run_tasks
+    from bench.runner import REFERENCE, Task, run_tasks
     from bench.store import RunStore
     from scenarios.resources import check_runs
     from scenarios.suites import load_suite
@@ -152,7 +161,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     check_runs([(m.scenario, m.scenario.mesh) for m in members], allow_large=args.allow_large or suite.allow_large)
     out = Path(args.out)
     store = RunStore(Path(args.store) if args.store else out / "runs")
-    tasks = [Task(m.scenario, "full", {}) for m in members]
+    tasks = [Task(m.scenario, REFERENCE, {}) for m in members]
     run_tasks(tasks, store, args.device if args.data_device else "cpu", args.jobs, "process", "training data")
     settings = TrainSettings(r=args.r, epochs=args.epochs, affine=args.affine, seed=args.seed, points=args.points)
     path = train_from_trajectories([store.folder(t.key) / "trajectory.npz" for t in tasks], out, settings,
@@ -246,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="simulate one scenario")
     s.add_argument("scenario", help="TOML path or suite member name (e.g. verify/slide_30deg_mu0.2)")
-    s.add_argument("--solver", default="full")
+    s.add_argument("--solver", default="full", help="a registered solver (see `list`)")
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--model", help="checkpoint of a trained reduced model (licrom)")
     s.add_argument("--mesh", help="another mesh of the same shape: name/resolution or a file")
@@ -258,9 +267,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
     s.add_argument("--suite", required=True)
-    s.add_argument("--solvers", default=None, help="comma list of variant sets besides the full reference "
-                   "(default: the suite's set in bench.variants.SUITE_DEFAULTS, else every set of bench.variants; "
-                   "`full` for the reference only)")
+    s.add_argument("--solvers", default=None, help="comma list of variant sets (or solver names) besides the "
+                   "reference (default: the suite's set in bench.variants.SUITE_DEFAULTS, else every set of "
+                   "bench.variants; the reference's name for the reference only)")
     s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--only", help="run only the members whose names match this shell pattern, e.g. 'paper/cheese_*'")
     s.add_argument("--jobs", type=int, default=1)
@@ -325,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except ValueError as err:  # checkpoint and plug-in errors name their file and value
-        if type(err).__name__ not in ("CheckpointError", "PluginError"):
+        if type(err).__name__ not in ("CheckpointError", "PluginError", "SolverParameterError"):
             raise
         print(f"error: {err}", file=sys.stderr)
         return 2

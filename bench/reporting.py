@@ -41,7 +41,7 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
                     others[f"{row['solver']}/{row['variant']}"] = traj
         errors = {label: error_over_time(ref, traj) for label, traj in others.items()}
         runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, errors=errors,
-                                 plane=planes.get(scenario)))
+                                 plane=planes.get(scenario), reference_label=str(ref_rows.iloc[0]["solver"])))
     extra = []
     if baseline is not None:
         from bench.compare import compare_folders

@@ -12,10 +12,9 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from analysis.derived import with_remesh_ratio
@@ -25,10 +24,13 @@ from analysis.transfer import transfer_to_mesh
 from bench.executors import make_executor
 from bench.store import RunStore, run_key
 from scenarios.atomic import write_json_atomic
-from scenarios.meshes import bbox_diagonal
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, load_suite
-from solvers.model import resolved
+from solvers.registry import entries, register_entries
+
+#: The solver whose runs are the references of the matrix (every other run is compared with its run of the same
+#: scenario); its default parameters are the reference's.
+REFERENCE = "full"
 
 
 @dataclass(frozen=True)
@@ -81,13 +83,15 @@ class Task:
         return run_key(self.scenario, self.solver, self.params, self.mesh)
 
 
-def execute(task: Task, store_root: str, device: str, threads: int = 1) -> str:
+def execute(task: Task, store_root: str, device: str, threads: int = 1, solvers: dict[str, str] | None = None) -> str:
     """Run one task into the store unless done (executed in a worker process, its BLAS, OpenMP and torch
-    thread pools limited to `threads` so that parallel workers do not oversubscribe the cores); returns its key."""
+    thread pools limited to `threads` so that parallel workers do not oversubscribe the cores, with the parent's
+    registered `solvers` (`solvers.registry.entries`)); returns its key."""
     from threadpoolctl import threadpool_limits
 
     from solvers.run import run_scenario
 
+    register_entries(solvers or {})
     store = RunStore(store_root)
     if not store.done(task.key):
         try:
@@ -108,7 +112,7 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
         return
     threads = max(1, (os.cpu_count() or 1) // jobs)
     with make_executor(executor, jobs) as ex:
-        futures = [ex.submit(execute, t, str(store.root), device, threads) for t in todo]
+        futures = [ex.submit(execute, t, str(store.root), device, threads, entries()) for t in todo]
         for f in tqdm(ex.as_completed(futures), total=len(futures), desc=desc, unit="run"):
             f.result()
 
@@ -123,10 +127,11 @@ def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
 
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
               executor: str = "process", report: bool = True, only: str | None = None,
-              allow_large: bool = False) -> Path:
+              allow_large: bool = False, reference: str = REFERENCE) -> Path:
     """Run the matrix of `suite_name` with `variants` into `out` (only the members matching the shell pattern
-    `only`, if given); returns the results.csv path. Every run is checked by the resource guard first
-    (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts its bounds)."""
+    `only`, if given), every run compared with the `reference` solver's; returns the results.csv path. Every run
+    is checked by the resource guard first (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts
+    its bounds)."""
     from bench.training import prepare_variants
 
     out = Path(out)
@@ -134,10 +139,10 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     suite = load_suite(suite_name).only(only)
     guard_resources(suite, variants, allow_large=allow_large or suite.allow_large)
     t0 = time.perf_counter()
-    refs = {m.scenario.name: Task(m.scenario, "full", {}) for m in suite.scenarios}
-    remesh_refs = [Task(m.scenario, "full", {}, mesh_variant(m, v.remesh))
+    refs = {m.scenario.name: Task(m.scenario, reference, {}) for m in suite.scenarios}
+    remesh_refs = [Task(m.scenario, reference, {}, mesh_variant(m, v.remesh))
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
-    run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "full-space references")
+    run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
     resolved = prepare_variants(suite, variants, store, refs, out / "models", device)
     tasks = []
     for m in suite.scenarios:
@@ -152,7 +157,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
-                                         "wall_s": time.perf_counter() - t0})
+                                         "reference": reference, "wall_s": time.perf_counter() - t0})
     if report:
         from bench.reporting import build_report  # here, not above: the worker processes need no plotting
 
@@ -211,7 +216,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
         ref, ref_stats = store.load(ref_task.key)
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
-        rows.append(base | {"solver": "full", "variant": "reference", "run": ref_task.key, "dt": sc.time.dt}
+        rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt}
                     | _timing(ref_stats, ref_stats) | _metrics(ref, ref, sc, ref_stats))
         for v, params in member_variants(resolved, variants, m):
             label = v.label or v.solver
@@ -232,7 +237,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                 if mesh is not None and traj is not None:
                     traj = transfer_to_mesh(traj, ref)
             else:
-                v_ref, v_ref_stats = store.load(Task(sc, "full", {}, mesh).key)
+                v_ref, v_ref_stats = store.load(Task(sc, ref_task.solver, {}, mesh).key)
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
                           "dt": task.scenario.time.dt,
@@ -242,22 +247,24 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
 
 
 def with_ref_dt_change(rows: list[dict]) -> list[dict]:
-    """Rows with `ref_dt_change` on every row of a scenario that has a full-space run on the reference's mesh at a
-    smaller time step than the reference's: that run's pos_rmse_rel against the reference (the smallest such dt
-    where there are several). It is how far the reference moves when its time step is refined: where the error
-    shrinks with dt the reference's own time-discretisation error is at least half of it, and about twice it once
-    backward Euler is in its first-order range; a reduced model's error of that order is within the reference's
-    own accuracy."""
-    ref_dt = {r["scenario"]: r.get("dt") or 0.0 for r in rows if r.get("variant") == "reference"}
-    finer = [r for r in rows if r.get("solver") == "full" and not r.get("remesh") and r.get("status") == "ok"
+    """Rows with `ref_dt_change` on every row of a scenario that has a run of the reference's solver on the
+    reference's mesh at a smaller time step than the reference's: that run's pos_rmse_rel against the reference
+    (the smallest such dt where there are several). It is how far the reference moves when its time step is
+    refined: where the error shrinks with dt the reference's own time-discretisation error is at least half of it,
+    and about twice it once backward Euler is in its first-order range; a reduced model's error of that order is
+    within the reference's own accuracy."""
+    refs = {r["scenario"]: r for r in rows if r.get("variant") == "reference"}
+    ref_dt = {name: r.get("dt") or 0.0 for name, r in refs.items()}
+    finer = [r for r in rows if r["scenario"] in refs and r.get("solver") == refs[r["scenario"]].get("solver")
+             and not r.get("remesh") and r.get("status") == "ok"
              and r.get("dt") is not None and r["dt"] < ref_dt.get(r["scenario"], 0.0)]
     change = {r["scenario"]: r.get("pos_rmse_rel") for r in sorted(finer, key=lambda r: -r["dt"])}  # finest last
     return [r | {"ref_dt_change": change[r["scenario"]]} if r["scenario"] in change else r for r in rows]
 
 
 def _timing(stats: dict, ref_stats: dict) -> dict:
-    """Timing and solver-health columns (Newton failures, line-search stalls, step retries); speedup = full step
-    time / this step time, both measured in this run."""
+    """Timing and solver-health columns (Newton failures, line-search stalls, step retries); speedup = the
+    reference's step time / this step time, both measured in this run."""
     keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
             "newton_iters_max", "not_converged", "line_search_stalls", "step_retries")
     row = {k: stats.get(k) for k in keys}
@@ -271,13 +278,7 @@ def _metrics(ref, traj, sc: Scenario, stats: dict) -> dict:
     no accuracy metrics (a truncated trajectory would look accurate)."""
     if traj is None or ref is None or stats.get("failed"):
         return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
-    sc = resolved(sc, bbox_diagonal(traj.X))  # the automatic contact stiffness the run used
+    contact = replace(sc.contact, stiffness=stats["contact_stiffness"])  # the stiffness the run resolved
     return {"status": "ok", "failure": ""} | compare(ref, traj, plane=sc.plane, material=sc.material,
-                                                     gravity=sc.gravity, basis=_basis_of(stats),
-                                                     contact=sc.contact if sc.effects.friction else None)
-
-
-def _basis_of(stats: dict) -> np.ndarray | None:
-    """The basis stored beside a reduced run, for the projection error (None for full-space runs)."""
-    path = stats.get("basis_path")
-    return np.load(path) if path and Path(path).is_file() else None
+                                                     gravity=sc.gravity, basis=traj.basis,
+                                                     contact=contact if sc.effects.friction else None)

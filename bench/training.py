@@ -12,7 +12,7 @@ from pathlib import Path
 
 from bench.store import RunStore
 from scenarios.suites import Suite
-from solvers.registry import PREPARE
+from solvers.registry import get_solver
 
 
 def training_runs(suite: Suite, refs: dict, store: RunStore) -> dict[str, list[Path]]:
@@ -28,19 +28,19 @@ def training_runs(suite: Suite, refs: dict, store: RunStore) -> dict[str, list[P
 
 def prepare_variants(suite: Suite, variants: Sequence, store: RunStore, refs: dict, models_dir: Path,
                      device: str) -> list[tuple[object, dict | None]]:
-    """(variant, params) pairs: params completed by the solver's prepare hook (training) or None if impossible.
+    """(variant, params) pairs: params completed by the solver's `prepare` (training) or None if impossible.
 
-    A variant whose solver trains per shape gets one entry per shape, its params carrying `shape`; the runner
+    A variant whose solver prepares per shape gets one entry per shape, its params carrying `shape`; the runner
     applies an entry only to the members of that shape.
     """
     groups = training_runs(suite, refs, store)
     out = []
     for v in variants:
-        prepare = PREPARE.get(v.solver)
-        if prepare is None:
+        solver = get_solver(v.solver)(device=device, **v.params)
+        if not solver.needs_training:
             out.append((v, dict(v.params)))
             continue
         for shape, paths in sorted(groups.items()):
-            out.append((v, prepare(shape=shape, trajectories=paths, params=dict(v.params),
-                                   models_dir=Path(models_dir), device=device, suite=suite.name)))
+            extra = solver.prepare(shape, paths, Path(models_dir), suite.name)
+            out.append((v, None if extra is None else dict(v.params) | extra))
     return out

@@ -62,7 +62,7 @@ class ScenarioRuns:
     others: Mapping[str, Trajectory] = field(default_factory=dict)
     errors: Mapping[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     plane: Plane | None = None
-    reference_label: str = "full"
+    reference_label: str = "reference"
 
 
 def _missing(value: object) -> bool:
@@ -185,7 +185,7 @@ def _time_convergence(frame: pd.DataFrame) -> str:
     if "ref_dt_change" not in frame or frame["ref_dt_change"].isna().all():
         return _note("No full-space run at a smaller time step than the reference's (variant dt-half).")
     refs = frame[frame["variant"] == "reference"][["scenario", "split", "dt", "ref_dt_change"]]
-    reduced = frame[frame["solver"] != "full"]
+    reduced = frame[~frame["solver"].isin(frame.loc[frame["variant"] == "reference", "solver"])]
     best = (pd.to_numeric(reduced["pos_rmse_rel"], errors="coerce").groupby(reduced["scenario"]).min()
             .rename("best_reduced_pos_rmse_rel"))
     table = refs.merge(best, left_on="scenario", right_index=True, how="left")

@@ -7,12 +7,12 @@ advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share b
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from scenarios.meshes import TetMesh
-from scenarios.model import Scenario
+from scenarios.model import Contact, Scenario
 from solvers.physics.contact import auto_penalty_stiffness
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices, snh_parameters
@@ -20,15 +20,20 @@ from solvers.physics.material import shape_matrices, snh_parameters
 
 @dataclass
 class State:
-    """Positions x (n, 3) [m] and velocities v (n, 3) [m/s] at time t [s]."""
+    """Positions x (n, 3) [m] and velocities v (n, 3) [m/s] at time t [s]; a solver with latent coordinates (a
+    reduced one) also sets q (r,) and their rate qdot (r,) [1/s] of the same state (None: not in its subspace yet,
+    e.g. an initial state, which it then projects)."""
 
     x: np.ndarray
     v: np.ndarray
     t: float = 0.0
+    q: np.ndarray | None = None
+    qdot: np.ndarray | None = None
 
     def copy(self) -> "State":
         """A deep copy."""
-        return State(self.x.copy(), self.v.copy(), self.t)
+        cp = lambda a: None if a is None else a.copy()  # noqa: E731
+        return State(self.x.copy(), self.v.copy(), self.t, cp(self.q), cp(self.qdot))
 
 
 @dataclass
@@ -37,9 +42,12 @@ class Model:
 
     X: (n, 3) rest positions; tets: (m, 4); surface: (k, 3) boundary triangles; Dm_inv: (m, 3, 3); vol: (m,);
     mass: (n,) lumped masses; points: (p,) contact sample vertices with area weights `area` (p,) [m^2];
-    mu_snh, lam_snh: stable Neo-Hookean parameters [Pa]; plane_normal (3,), plane_offset [m] (None without plane);
-    terms: names of the incremental-potential terms that exist (`inertia` always, then `elasticity`, `gravity`,
-    `contact`, `friction`, `damping`); L: bounding-box diagonal of the rest mesh [m].
+    mu_snh, lam_snh: stable Neo-Hookean parameters [Pa]; density [kg/m^3]; plane_normal (3,), plane_offset [m]
+    (None without plane); friction: Coulomb coefficient mu [-] of the plane (0 without plane); contact: the contact
+    law and its parameters with the automatic penalty stiffness resolved to a number; terms: names of the
+    incremental-potential terms that exist (`inertia` always, then `elasticity`, `gravity`, `contact`, `friction`,
+    `damping`); L: bounding-box diagonal of the rest mesh [m]. `scenario` is the scene it was built from (its
+    name, time span and initial placement; the physics above is read from the model's own fields).
     """
 
     scenario: Scenario
@@ -59,7 +67,9 @@ class Model:
     plane_offset: float
     terms: tuple[str, ...]
     L: float
-    extras: dict = field(default_factory=dict)
+    density: float
+    friction: float
+    contact: Contact
 
     @property
     def n(self) -> int:
@@ -69,6 +79,11 @@ class Model:
     def has(self, term: str) -> bool:
         """Whether the incremental potential contains `term`."""
         return term in self.terms
+
+    @property
+    def contact_damping(self) -> float:
+        """k_d [Pa s/m] of the penalty law's damping term, 0 when the scene has no damping term."""
+        return self.contact.damping if self.has("damping") else 0.0
 
 
 def active_terms(scenario: Scenario) -> tuple[str, ...]:
@@ -120,7 +135,8 @@ def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
         gravity=np.asarray(scenario.gravity, dtype=np.float64),
         plane_normal=None if plane is None else np.asarray(plane.normal, dtype=np.float64),
         plane_offset=0.0 if plane is None else float(plane.offset),
-        terms=active_terms(scenario), L=float(mesh.bbox_diagonal()),
+        terms=active_terms(scenario), L=float(mesh.bbox_diagonal()), density=float(scenario.material.density),
+        friction=0.0 if plane is None else float(plane.friction), contact=scenario.contact,
     )
 
 

@@ -1,49 +1,54 @@
-"""Solver plug-ins: one entry per solver name; the harness never special-cases a solver.
+"""The solver registry: solver name -> its `solvers.contract.Solver` class, the one place solvers are listed.
 
-A plug-in is a function `setup(model, device, **params) -> stepper` (untimed); the stepper has `name` and
-`step(state_in, state_out, dt) -> StepStats`. The parameter grids the harness runs are named variant sets in
-`bench.variants`; `PREPARE[name]` is a solver's offline step (training), run once per mesh shape.
+Entries are import paths (`module:Class`), imported on first use, so that torch and taichi load only when a
+reduced solver runs, and so that a worker process can import a solver registered elsewhere (`entries`,
+`register_entries`). The harness never special-cases a solver: it looks it up here by name.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib
 
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.model import Model
+from solvers.contract import Solver
 
-
-def setup_full(model: Model, device: str = "cpu", tol: float = 1e-5, linear: str = "auto",
-               max_iter: int = 200) -> FullSpaceSolver:
-    """The full-space Newton solver (the reference)."""
-    return FullSpaceSolver(model, device=device, settings=NewtonSettings(tol=tol, linear=linear, max_iter=max_iter))
-
-
-def _reduced(name: str) -> Callable[..., object]:
-    """Lazy import of a reduced plug-in (torch and taichi load only when a reduced solver is used)."""
-    def setup(model: Model, device: str = "cpu", **params):
-        from solvers.licrom import plugins
-        return getattr(plugins, f"setup_{name}")(model, device, **params)
-    return setup
+_ENTRIES: dict[str, str] = {
+    "full": "solvers.full.plugin:FullSpace",
+    "licrom": "solvers.licrom.plugins:Licrom",
+    "pod": "solvers.licrom.plugins:Pod",
+    "affine": "solvers.licrom.plugins:Affine",
+}
 
 
-def _prepare(name: str) -> Callable[..., dict | None]:
-    def prepare(**kw):
-        from solvers.licrom import plugins
-        return getattr(plugins, f"prepare_{name}")(**kw)
-    return prepare
+def register(cls: type[Solver]) -> type[Solver]:
+    """Add (or replace) the solver class under its `name`; usable as a class decorator."""
+    if not (isinstance(cls, type) and issubclass(cls, Solver)) or not cls.name:
+        raise TypeError(f"{cls!r}: a solver is a solvers.contract.Solver subclass with a non-empty `name`")
+    _ENTRIES[cls.name] = f"{cls.__module__}:{cls.__qualname__}"
+    return cls
 
 
-SOLVERS: dict[str, Callable[..., object]] = {
-    "full": setup_full, "licrom": _reduced("licrom"), "pod": _reduced("pod"), "affine": _reduced("affine")}
-# Offline preparation per mesh shape (training a reduced model, building a basis): name -> hook returning the
-# completed run parameters (with `shape`), or None when the shape cannot be prepared.
-PREPARE: dict[str, Callable[..., dict | None]] = {"licrom": _prepare("licrom"), "pod": _prepare("pod")}
+def entries() -> dict[str, str]:
+    """Every registered solver: name -> import path (what a worker process needs to register them too)."""
+    return dict(_ENTRIES)
 
 
-def get_solver(name: str) -> Callable[..., object]:
-    """The setup function of solver `name`; a clear error lists the known ones."""
+def register_entries(paths: dict[str, str]) -> None:
+    """Register solvers by import path (the `entries` of another process)."""
+    _ENTRIES.update(paths)
+
+
+def solver_names() -> list[str]:
+    """Names of the registered solvers."""
+    return list(_ENTRIES)
+
+
+def get_solver(name: str) -> type[Solver]:
+    """The solver class registered as `name`; a clear error lists the known ones."""
     try:
-        return SOLVERS[name]
+        module, _, qualname = _ENTRIES[name].partition(":")
     except KeyError:
-        raise ValueError(f"solver = {name!r}: unknown; known solvers: {sorted(SOLVERS)}") from None
+        raise ValueError(f"solver = {name!r}: unknown; known solvers: {sorted(_ENTRIES)}") from None
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj

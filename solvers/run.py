@@ -15,36 +15,45 @@ from solvers.simulate import Diverged, simulate
 from solvers.trajectory import Trajectory
 
 
+class Skipped(RuntimeError):
+    """The solver cannot run this scene (`Solver.skip` gave the reason)."""
+
+
 def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", params: dict | None = None,
                  mesh: MeshSpec | None = None, progress: bool = False) -> tuple[Trajectory | None, dict]:
     """Simulate `scenario` (optionally on another mesh of the same shape) with the named solver.
 
     Returns the trajectory (None if the run diverged before its first frame) and a stats dict: setup_s,
     warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
-    of the timed run, `failed` and `failure` (reason) for a run that diverged.
+    of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]), the solver's `describe()`,
+    `failed` and `failure` (reason) for a run that diverged. Raises `Skipped` for a scene the solver declines.
     """
     params = dict(params or {})
     t0 = time.perf_counter()
     model = build_model(scenario, load_mesh(mesh or scenario.mesh))
-    stepper = get_solver(solver)(model, device=device, **params)
+    stepper = get_solver(solver)(device=device, **params)
+    reason = stepper.skip(model)
+    if reason:
+        raise Skipped(reason)
+    stepper.setup(model)
     setup_s = time.perf_counter() - t0
-    state0 = initial_state(model)
+    state0 = stepper.initial(initial_state(model))
     t0 = time.perf_counter()
     stepper.step(state0.copy(), State(state0.x.copy(), state0.v.copy()), scenario.time.dt)
     warmup_s = time.perf_counter() - t0
     meta = {"solver": solver, "params": params, "device": device, "mesh": (mesh or scenario.mesh).key}
     stats: dict = {"setup_s": setup_s, "warmup_s": warmup_s, "device": device, "solver": solver, "params": params,
                    "mesh": (mesh or scenario.mesh).key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
-                   "terms": list(model.terms), "failed": False, "failure": ""}
-    stats.update(getattr(stepper, "info", {}))
+                   "terms": list(model.terms), "contact_stiffness": model.contact.stiffness, "failed": False,
+                   "failure": ""}
+    stats.update(stepper.describe())
     t0 = time.perf_counter()
     try:
         traj, steps = simulate(model, stepper, state0, progress=progress, meta=meta)
     except Diverged as err:
         traj, steps = err.trajectory, err.stats
         stats.update(failed=True, failure=str(err))
-    if hasattr(stepper, "frame_latents"):
-        traj.q = stepper.frame_latents(traj.t)
+    traj.basis = stepper.basis
     stats["run_s"] = time.perf_counter() - t0
     stats.update({k: v for k, v in stats_summary(steps).items()})
     stats["finite"] = bool(np.isfinite(traj.x).all()) and not stats["failed"]

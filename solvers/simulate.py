@@ -1,10 +1,11 @@
 """The time loop shared by every solver: step a `State` through a scenario's duration, store frames.
 
 A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats are a `StepStats`
-(`solvers.step_stats`). A step that fails (Newton not converged, or a non-finite state) is redone from the same
-start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the attempts'
-iterations and wall time and counts the retries. A step still non-finite after that ends the run: the loop raises
-`Diverged` carrying what was computed so far.
+(`solvers.step_stats`); where its states carry latent coordinates q (every stored frame's, the initial state's
+included), the trajectory stores them. A step that fails (Newton not converged, or a non-finite state) is redone
+from the same start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the
+attempts' iterations and wall time and counts the retries. A step still non-finite after that ends the run: the
+loop raises `Diverged` carrying what was computed so far.
 """
 
 from __future__ import annotations
@@ -71,11 +72,12 @@ def simulate(model: Model, solver: Stepper, state0: State | None = None, progres
     """
     ts = model.scenario.time
     state = state0 if state0 is not None else initial_state(model)
-    frames_t, frames_x, frames_v, stats = [state.t], [state.x.copy()], [state.v.copy()], []
+    frames_t, frames_x, frames_v, frames_q, stats = [state.t], [state.x.copy()], [state.v.copy()], [state.q], []
 
     def trajectory() -> Trajectory:
+        q = np.array(frames_q) if all(q is not None for q in frames_q) else None
         return Trajectory(t=np.array(frames_t), x=np.array(frames_x), X=model.X, tets=model.tets,
-                          surface=model.surface, v=np.array(frames_v),
+                          surface=model.surface, v=np.array(frames_v), q=q,
                           meta=dict(meta or {}, scenario=model.scenario.name, solver=solver.name))
 
     bar = tqdm(range(1, ts.n_steps + 1), desc=f"{solver.name}:{model.scenario.name}", disable=not progress,
@@ -89,4 +91,5 @@ def simulate(model: Model, solver: Stepper, state0: State | None = None, progres
             frames_t.append(state.t)
             frames_x.append(state.x.copy())
             frames_v.append(state.v.copy())
+            frames_q.append(None if state.q is None else state.q.copy())
     return trajectory(), stats

@@ -27,6 +27,7 @@ class Trajectory:
     surface: (k, 3) boundary triangles (outward orientation).
     v: (F, n, 3) vertex velocities [m/s], optional.
     q: (F, r) latent coordinates of a reduced solver, optional.
+    basis: (n, 3, r) that solver's subspace (x = X + basis q) [m per unit q], optional.
     meta: JSON-serialisable provenance (scenario name, solver, parameters, seeds).
     """
 
@@ -37,6 +38,7 @@ class Trajectory:
     surface: np.ndarray
     v: np.ndarray | None = None
     q: np.ndarray | None = None
+    basis: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
 
     @property
@@ -51,6 +53,8 @@ class Trajectory:
             arrays["v"] = self.v
         if self.q is not None:
             arrays["q"] = self.q
+        if self.basis is not None:
+            arrays["basis"] = self.basis
         arrays["meta"] = np.array(json.dumps(self.meta, sort_keys=True, default=str))
         with atomic_open(path, "wb") as f:
             np.savez_compressed(f, **arrays)
@@ -63,6 +67,7 @@ class Trajectory:
             meta = json.loads(str(z["meta"])) if "meta" in z else {}
             return cls(
                 t=z["t"], x=z["x"], X=z["X"], tets=z["tets"], surface=z["surface"],
-                v=z["v"] if "v" in z else None, q=z["q"] if "q" in z else None, meta=meta,
+                v=z["v"] if "v" in z else None, q=z["q"] if "q" in z else None,
+                basis=z["basis"] if "basis" in z else None, meta=meta,
             )
 

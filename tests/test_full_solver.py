@@ -7,8 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from scenarios.meshes import load_mesh
-from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
+from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.model import State, build_model, initial_state
 from solvers.physics import contact as pc

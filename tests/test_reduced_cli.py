@@ -11,7 +11,7 @@ import pytest
 from bench.cli import main, resolve_scenario
 from scenarios.meshes import load_mesh
 from scenarios.model import MeshSpec
-from solvers.licrom.plugins import PluginError, prepare_pod, setup_pod
+from solvers.licrom.plugins import Licrom, Pod
 from solvers.licrom.train import CheckpointError
 from solvers.model import build_model
 from solvers.trajectory import Trajectory
@@ -78,22 +78,22 @@ def test_corrupt_checkpoint_and_wrong_r_fail_clearly(trained, tmp_path, capsys):
     code = main(["simulate", "verify/block_fall", "--solver", "licrom", "--model", str(bad), "--no-vtu", "-q",
                  "--out", str(tmp_path / "x")])
     assert code == 2 and str(bad) in capsys.readouterr().err
-    from solvers.licrom.plugins import setup_licrom
-
     model = build_model(resolve_scenario("verify/block_fall"), load_mesh(MeshSpec("block", "coarse")))
     with pytest.raises(CheckpointError, match="r"):
-        setup_licrom(model, checkpoint=str(out / "model.pt"), r=20)
+        Licrom(checkpoint=str(out / "model.pt"), r=20).setup(model)
 
 
 def test_pod_refuses_another_mesh(trained, tmp_path):
     suite, out = trained
     runs = sorted((out / "runs").glob("*/trajectory.npz"))
-    params = prepare_pod(shape="block", trajectories=runs, params={"r": 6}, models_dir=tmp_path, device="cpu",
-                         suite="tinytrain")
+    params = Pod(r=6).prepare("block", runs, tmp_path, "tinytrain")
+    assert params["shape"] == "block" and Path(params["basis"]).is_relative_to(tmp_path)
     sc = resolve_scenario("verify/block_fall")
     other = build_model(sc, load_mesh(MeshSpec("block", "coarse_alt")))
-    with pytest.raises(PluginError, match="training mesh"):
-        setup_pod(other, basis=params["basis"], r=6)
+    pod = Pod(r=6, **params)
+    assert "training mesh" in pod.skip(other)
     same = build_model(sc, load_mesh(MeshSpec("block", "coarse")))
-    assert setup_pod(same, basis=params["basis"], r=6).reduced.r == 6
+    assert pod.skip(same) is None
+    pod.setup(same)
+    assert pod.solver.reduced.r == 6 and pod.basis.shape == (same.n, 3, 6)
     assert np.isfinite(np.load(params["basis"])["W"]).all()

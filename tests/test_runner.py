@@ -245,7 +245,7 @@ def test_barrier_variant_compares_the_laws_and_a_stability_matrix_judges_every_c
     suite = tmp_path / "laws.toml"
     suite.write_text(LAWS_SUITE.replace("tags = []\n", ""))
     gates = tmp_path / "gates.toml"
-    gates.write_text(f"""
+    gates.write_text("""
 [[gate]]
 suite = "laws"
 variant = "full/barrier"

@@ -2,10 +2,10 @@
 
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
 the vertex positions x (n, 3), x_hat = x^n + h v^n (docs/design.md, "Physics"). Only the terms the scene calls for are
-built (`Model.terms`); an absent term launches no kernel. Newton directions come from the projected (PSD)
-Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E; the barrier
-law also caps the step so that no contact point crosses the plane. Convergence is measured in velocity units:
-|dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal.
+built (`solvers.physics.terms.terms_of`); an absent term launches no kernel. Newton directions come from the
+projected (PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E,
+in the shared loop of `solvers.newton`; the barrier law also caps the step so that no contact point crosses the
+plane. Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal.
 """
 
 from __future__ import annotations
@@ -20,18 +20,12 @@ import warp as wp
 import warp.optim.linear as wpl
 import warp.sparse as wps
 
-from solvers.full import kernels as K
 from solvers.model import Model, State
+from solvers.newton import Direction, LineSearch, feasible_step, minimise
 from solvers.physics.contact import lagged_pressure
+from solvers.physics.terms import terms_of
 from solvers.step_stats import StepStats
 from solvers.warp_runtime import init_warp
-
-#: Round-off allowance of the Armijo test, relative to |E|: a trial point may exceed the sufficient-decrease line by
-#: this much. Larger (1e-12 was tried) lets Newton cycle between the kinks of the penalty and friction laws (their
-#: second derivatives jump) with the energy flat to 1e-12 but the iterate never settling; 1e-14 is a few ulps of the
-#: summed energy.
-ARMIJO_SLACK = 1e-14
-
 
 @dataclass(frozen=True)
 class NewtonSettings:
@@ -102,10 +96,10 @@ class FullSpaceSolver:
         if linear not in ("direct", "cg"):
             raise ValueError(f"solver.linear = {linear!r}: expected 'direct', 'cg' or 'auto'")
         self.linear = linear
-        sc = model.scenario
-        self.law = sc.contact.law
+        self.law = model.contact.law
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
+        self.terms = terms_of(model)
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
         self.tets = arr(model.tets.astype(np.int32), wp.vec4i)
         self.Dm_inv = arr(model.Dm_inv, wp.mat33d)
@@ -140,39 +134,13 @@ class FullSpaceSolver:
 
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
     def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:
-        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x.
+        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x: each of the
+        model's terms (`solvers.physics.terms`) launches its kernels.
 
         inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
         """
-        m, d = self.model, self.device
-        wp.launch(K.inertia_gravity_kernel, m.n, device=d, inputs=[
-            x, self.x_hat, self.mass, 1.0 / h**2 if inertia else 0.0, self.gravity, self.diag, self.grad, self.values,
-            self.energy_buf, mode])
-        if m.has("elasticity"):
-            ins = [x, self.tets, self.Dm_inv, self.vol, m.mu_snh, m.lam_snh, self.alpha_snh]
-            if mode == 0:
-                wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [self.energy_buf])
-            else:
-                wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [self.grad])
-                self.elem_blocks.zero_()
-                wp.launch(K.elastic_hessian_kernel, m.tets.shape[0], device=d, inputs=ins + [self.elem_blocks])
-                wp.launch(K.scatter_blocks_kernel, self.elem_blocks.shape[0], device=d,
-                          inputs=[self.elem_blocks, self.blockmap, self.values])
-        if m.has("contact"):
-            c = m.scenario.contact
-            out = [self.diag, self.grad, self.values, self.energy_buf, mode]
-            if self.law == "penalty":
-                kd = c.damping if m.has("damping") else 0.0
-                wp.launch(K.penalty_contact_kernel, m.points.size, device=d, inputs=[
-                    x, self.x_prev, self.points, self.area, self.normal, m.plane_offset, c.stiffness, kd, h] + out)
-            else:
-                wp.launch(K.barrier_contact_kernel, m.points.size, device=d, inputs=[
-                    x, self.points, self.area, self.normal, m.plane_offset, c.barrier_stiffness,
-                    c.barrier_distance] + out)
-        if m.has("friction"):
-            wp.launch(K.friction_kernel, m.points.size, device=d, inputs=[
-                x, self.x_prev, self.points, self.area, self.fn, self.normal, m.scenario.plane.friction,
-                m.scenario.contact.friction_stiffness, h, self.diag, self.grad, self.values, self.energy_buf, mode])
+        for term in self.terms:
+            term.launch(self, x, h, mode, inertia)
 
     def energy(self, x: wp.array, h: float, inertia: bool = True) -> float:
         """E(x) [J] of the current step's incremental potential."""
@@ -206,20 +174,14 @@ class FullSpaceSolver:
         if not (self.model.has("contact") and self.law == "barrier"):
             return 1.0
         n, p = self.model.plane_normal, self.model.points
-        phi = x[p] @ n - self.model.plane_offset
-        rate = dx[p] @ n
-        approaching = rate < 0
-        if not approaching.any():
-            return 1.0
-        return float(min(1.0, 0.9 * np.min(phi[approaching] / -rate[approaching])))
+        return feasible_step(x[p] @ n - self.model.plane_offset, dx[p] @ n)
 
     # ----- one time step --------------------------------------------------------------------------------
     def _lag_normal_pressure(self, state: State) -> None:
         """Normal pressure at the start of the step (lagged friction, IPC), per contact point [Pa]."""
-        m, c = self.model, self.model.scenario.contact
-        kd = c.damping if m.has("damping") else 0.0
+        m, c = self.model, self.model.contact
         fn = lagged_pressure(self.law, state.x[m.points], state.v[m.points], m.plane_normal, m.plane_offset,
-                             c.stiffness, kd, c.barrier_stiffness, c.barrier_distance)
+                             c.stiffness, m.contact_damping, c.barrier_stiffness, c.barrier_distance)
         self.fn.assign(np.ascontiguousarray(fn))
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
@@ -234,45 +196,43 @@ class FullSpaceSolver:
         x = x_hat.copy()
         if m.has("contact") and self.law == "barrier":
             x = state_in.x.copy() + h * state_in.v * self._max_feasible_step(state_in.x, h * state_in.v)
+        res = minimise(_StepProblem(self, h), x, s.tol * m.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
+        x = res.y
         self.x.assign(x)
-        E = self.energy(self.x, h)
-        tol_v = s.tol * m.L
-        halvings = lin_iters = stalls = 0
-        converged = False
-        residual = np.inf
-        it = 0
-        for it in range(1, s.max_iter + 1):
-            self.gradient_hessian(self.x, h)
-            dx, li = self._solve()
-            lin_iters += li
-            residual = float(np.abs(dx).max()) / h
-            if residual < tol_v:
-                x = x + self._max_feasible_step(x, dx) * dx
-                self.x.assign(x)
-                converged = True
-                break
-            g_dot = float(np.sum(self.grad.numpy() * dx))
-            alpha = self._max_feasible_step(x, dx)
-            while True:
-                self.x_trial.assign(x + alpha * dx)
-                E_new = self.energy(self.x_trial, h)
-                if np.isfinite(E_new) and E_new <= E + s.armijo * alpha * g_dot + ARMIJO_SLACK * abs(E):
-                    break
-                alpha *= 0.5
-                halvings += 1
-                if alpha < 2.0 ** -s.max_halvings:
-                    break
-            if not (np.isfinite(E_new) and alpha >= 2.0 ** -s.max_halvings):
-                stalls += 1  # no decrease along dx (e.g. a non-finite direction): keep x, report not converged
-                self.x.assign(x)
-                break
-            x = x + alpha * dx
-            self.x.assign(x)
-            E = E_new
         state_out.x = x
         state_out.v = (x - state_in.x) / h
         state_out.t = state_in.t + h
-        return StepStats(it, residual, halvings, converged, time.perf_counter() - t0, lin_iters, stalls)
+        return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
+                         res.linear_iters, res.stalls)
+
+
+class _StepProblem:
+    """One step's incremental potential as a `solvers.newton.NewtonProblem` over the vertex positions (n, 3) [m]:
+    h the time step [s] (1 with inertia=False: static equilibrium, where the step norm is |dx|_inf [m])."""
+
+    def __init__(self, solver: FullSpaceSolver, h: float, inertia: bool = True) -> None:
+        self.solver, self.h, self.inertia = solver, h, inertia
+
+    def energy(self, x: np.ndarray) -> float:
+        """E(x) [J]."""
+        self.solver.x_trial.assign(x)
+        return self.solver.energy(self.solver.x_trial, self.h, self.inertia)
+
+    def direction(self, x: np.ndarray) -> Direction:
+        """Newton direction from the projected Hessian at x."""
+        sv = self.solver
+        sv.x.assign(x)
+        sv.gradient_hessian(sv.x, self.h, self.inertia)
+        dx, li = sv._solve()
+        return Direction(dx, float(np.sum(sv.grad.numpy() * dx)), li)
+
+    def step_norm(self, dx: np.ndarray) -> float:
+        """|dx|_inf / h [m/s]."""
+        return float(np.abs(dx).max()) / self.h
+
+    def max_step(self, x: np.ndarray, dx: np.ndarray) -> float:
+        """The barrier law's feasible-step cap (1 for the penalty law)."""
+        return self.solver._max_feasible_step(x, dx)
 
 
 @wp.kernel

@@ -1,11 +1,12 @@
-"""Solver plug-ins of the reduced family: `licrom` (trained neural field), `pod` (mesh-bound SVD modes), `affine`.
+"""Solvers of the reduced family under the solver contract (`solvers.contract`): `licrom` (trained neural field),
+`pod` (mesh-bound SVD modes), `affine` (the 12 affine fields).
 
-Each has a `setup_*(model, device, **params) -> ReducedSolver` (untimed) and, where it needs the suite's
-training data, a `prepare_*(shape, trajectories, params, models_dir, device, suite) -> params` that trains once per
-(mesh shape, settings), caches the artefact under `models_dir/<key>/`, and returns the run parameters with
-`shape` and the artefact's path. Cubature parameter: `all` (every tet, weight 1), `uniform:N` or `optimized:N`
-(An, Kim & James on the training states; on a mesh other than the training mesh it falls back to uniform:N, as
-LiCROM does for remeshing, and the run's stats say so).
+Each `setup(model)` builds a `ReducedSolver` (untimed); where a solver needs the suite's training data, its
+`prepare(shape, trajectories, out_dir, suite)` trains once per (mesh shape, settings), caches the artefact under
+`out_dir/<key>/` (the run's output folder), and returns the run parameters `shape` and the artefact's path.
+Cubature parameter: `all` (every tet, weight 1), `uniform:N` or `optimized:N` (An, Kim & James on the training
+states; on a mesh other than the training mesh it falls back to uniform:N, as LiCROM does for remeshing, and the
+run's stats say so).
 """
 
 from __future__ import annotations
@@ -13,15 +14,18 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from abc import abstractmethod
 from pathlib import Path
 
 import numpy as np
 
+from scenarios.atomic import write_json_atomic
 from solvers.baselines import affine_basis, pod_basis, project
+from solvers.contract import Solver
 from solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
 from solvers.licrom.reduced import ReducedSolver
-from solvers.model import Model
-from scenarios.atomic import write_json_atomic
+from solvers.model import Model, State
+from solvers.step_stats import StepStats
 from solvers.trajectory import Trajectory
 
 
@@ -54,46 +58,92 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
     return uniform_cubature(model, int(count), seed), spec
 
 
-def _stored_basis(W: np.ndarray) -> str:
-    """W saved once under the cache (keyed by its bytes), for the projection-error metric of the runs."""
-    from solvers.warp_runtime import cache_root
+class _Reduced(Solver):
+    """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
+    Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
+    `projected_gradient`), seed."""
 
-    path = cache_root() / "bases" / f"{hashlib.sha256(W.tobytes()).hexdigest()[:16]}.npy"
-    if not path.is_file():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.save(path, W)
-    return str(path)
+    @abstractmethod
+    def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
+        """The basis W (n, 3, r) on `model`'s mesh, a stored optimised cubature (or None) and stats to report."""
+
+    def setup(self, model: Model) -> None:
+        """The reduced solver on this model's basis with the resolved cubature; `info` feeds the run's stats."""
+        W, stored_cubature, info = self.basis_of(model)
+        p = self.params
+        cub, used = _cubature(model, W, p["cubature"], p["seed"], stored_cubature)
+        solver = ReducedSolver(model, W, cub, scheme=p["scheme"], device=self.device, seed=p["seed"],
+                               name=self.name)
+        self.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0]))}
+        if p["scheme"] == "projected_gradient":
+            # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
+            from solvers.model import initial_state
+
+            limit = solver.projected_gradient_alpha_limit(initial_state(model), model.scenario.time.dt)
+            solver.alpha = 0.9 * limit
+            self.info["pg_alpha"] = solver.alpha
+        self.info |= info
+        self.solver, self.basis = solver, solver.reduced.W
+
+    def initial(self, state: State) -> State:
+        """The state with its latent coordinates (mass-weighted projection)."""
+        return self.solver.project(state)
+
+    def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
+        """One reduced backward-Euler step."""
+        return self.solver.step(state_in, state_out, dt)
+
+    def describe(self) -> dict:
+        """Name, parameters, and the resolved cubature, dimension r, training time."""
+        return super().describe() | self.info
 
 
-def _solver(model: Model, W: np.ndarray, device: str, cubature: str, scheme: str, seed: int, name: str,
-            stored_cubature: dict | None = None, basis_path: str | None = None) -> ReducedSolver:
-    """The reduced solver on basis W with the resolved cubature; `info` feeds the run's stats."""
-    basis_path = basis_path or _stored_basis(W)
-    cub, used = _cubature(model, W, cubature, seed, stored_cubature)
-    solver = ReducedSolver(model, W, cub, scheme=scheme, device=device, seed=seed, name=name)
-    solver.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0])),
-                   "basis_path": basis_path}
-    if scheme == "projected_gradient":
-        # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
-        from solvers.model import initial_state
-
-        limit = solver.projected_gradient_alpha_limit(initial_state(model), model.scenario.time.dt)
-        solver.alpha = 0.9 * limit
-        solver.info["pg_alpha"] = solver.alpha
-    return solver
+_COMMON = {"cubature": "all", "scheme": "newton", "seed": 0}
 
 
 # ----- affine ------------------------------------------------------------------------------------------------
-def setup_affine(model: Model, device: str = "cpu", cubature: str = "all", scheme: str = "newton",
-                 seed: int = 0) -> ReducedSolver:
+class Affine(_Reduced):
     """The 12 exact affine fields as the subspace (rigid motions and homogeneous strains only)."""
-    return _solver(model, affine_basis(model.X), device, cubature, scheme, seed, "affine")
+
+    name = "affine"
+    parameters = dict(_COMMON)
+
+    def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
+        """The affine basis of the mesh."""
+        return affine_basis(model.X), None, {}
 
 
 # ----- POD ---------------------------------------------------------------------------------------------------
-def prepare_pod(shape: str, trajectories: list[Path], params: dict, models_dir: Path, device: str,
-                suite: str) -> dict:
-    """SVD modes of the training displacements of one shape, stored with the training mesh they belong to."""
+class Pod(_Reduced):
+    """POD modes of the training displacements (`r` of them, plus the affine fields with `affine`); bound to the
+    training mesh."""
+
+    name = "pod"
+    parameters = _COMMON | {"r": 20, "affine": False, "basis": "", "shape": ""}
+
+    def prepare(self, shape: str, trajectories: list[Path], out_dir: Path, suite: str) -> dict:
+        """SVD modes of the training displacements of one shape, stored with the training mesh they belong to."""
+        return {"shape": shape, "basis": _pod_basis_file(shape, trajectories, self.params, out_dir, suite)}
+
+    def skip(self, model: Model) -> str | None:
+        """POD cannot remesh: any mesh but its training mesh."""
+        with np.load(self.params["basis"]) as z:
+            X = z["X"]
+        if X.shape != model.X.shape or not np.allclose(X, model.X):
+            return (f"pod basis {self.params['basis']}: bound to its training mesh ({len(X)} vertices); this mesh "
+                    f"has {model.n} vertices. POD cannot remesh: use licrom or affine")
+        return None
+
+    def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
+        """The stored modes and their training time."""
+        path = self.params["basis"]
+        with np.load(path) as z:
+            W = z["W"]
+        return W, None, {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]}
+
+
+def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_dir: Path, suite: str) -> str:
+    """The POD basis file of one shape (computed once, cached under models_dir)."""
     r, with_affine = int(params.get("r", 20)), bool(params.get("affine", False))
     key = _key("pod", {"shape": shape, "r": r, "affine": with_affine, "data": [str(p) for p in trajectories]})
     path = Path(models_dir) / key / "basis.npz"
@@ -111,38 +161,25 @@ def prepare_pod(shape: str, trajectories: list[Path], params: dict, models_dir: 
         np.savez_compressed(path, W=W, X=X)
         write_json_atomic(path.parent / "info.json", {"train_s": time.perf_counter() - t0, "shape": shape,
                                                       "suite": suite, "r": r, "affine": with_affine})
-    return params | {"shape": shape, "basis": str(path)}
-
-
-def setup_pod(model: Model, device: str = "cpu", basis: str = "", r: int = 20, affine: bool = False,
-              cubature: str = "all", scheme: str = "newton", seed: int = 0, shape: str = "") -> ReducedSolver:
-    """POD modes; refuses any mesh but the one they were computed on."""
-    with np.load(basis) as z:
-        W, X = z["W"], z["X"]
-    if X.shape != model.X.shape or not np.allclose(X, model.X):
-        raise PluginError(f"pod basis {basis}: bound to its training mesh ({len(X)} vertices); this mesh has "
-                          f"{model.n} vertices. POD cannot remesh: use licrom or affine")
-    solver = _solver(model, W, device, cubature, scheme, seed, "pod")
-    solver.info["train_s"] = json.loads((Path(basis).parent / "info.json").read_text())["train_s"]
-    return solver
+    return str(path)
 
 
 # ----- LiCROM ------------------------------------------------------------------------------------------------
-def prepare_licrom(shape: str, trajectories: list[Path], params: dict, models_dir: Path, device: str,
-                   suite: str) -> dict:
-    """Train the neural field of one shape on its training trajectories (cached), and, for an optimised
-    cubature, select it on the training mesh."""
+def _train_licrom(shape: str, trajectories: list[Path], params: dict, models_dir: Path, device: str,
+                  suite: str) -> dict:
+    """Train the neural field of one shape on its training trajectories (cached under models_dir), and, for an
+    optimised cubature, select it on the training mesh; returns `shape`, `checkpoint` (and `cubature_file`)."""
     from solvers.licrom.train import TrainSettings, evaluate_basis, load_checkpoint, train_from_trajectories
 
-    settings = {k: params.get(k, d) for k, d in (("r", 20), ("epochs", 100), ("affine", False), ("seed", 0),
-                                                 ("points", 512))}
+    settings = {k: params.get(k) if params.get(k) is not None else d
+                for k, d in (("r", 20), ("epochs", 100), ("affine", False), ("seed", 0), ("points", 512))}
     key = _key("licrom", {"shape": shape, **settings, "data": [str(p) for p in trajectories]})
     folder = Path(models_dir) / key
     ckpt_path = folder / "model.pt"
     if not ckpt_path.is_file():
         train_from_trajectories([str(p) for p in trajectories], folder, TrainSettings(**settings), device,
-                                identity={"suite": suite, "shape": shape})
-    out = params | {"shape": shape, "checkpoint": str(ckpt_path)}
+                                progress=True, identity={"suite": suite, "shape": shape})
+    out = {"shape": shape, "checkpoint": str(ckpt_path)}
     spec = str(params.get("cubature", "all"))
     if spec.startswith("optimized:"):
         cub_path = folder / f"cubature_{spec.replace(':', '_')}.json"
@@ -167,16 +204,24 @@ def _model_of(traj: Trajectory) -> Model:
     return build_model(Scenario(name="training-mesh", plane=None), make_mesh(traj.X, traj.tets, "training"))
 
 
-def setup_licrom(model: Model, device: str = "cpu", checkpoint: str = "", r: int | None = None, epochs: int = 100,
-                 affine: bool = False, cubature: str = "all", scheme: str = "newton", seed: int = 0,
-                 points: int = 512, shape: str = "", cubature_file: str = "") -> ReducedSolver:
-    """The trained neural field evaluated on this model's mesh (any mesh of the shape)."""
-    from solvers.licrom.train import evaluate_basis, load_checkpoint
+class Licrom(_Reduced):
+    """The trained neural field evaluated on the run's mesh (any mesh of the shape): `r` latent dimensions,
+    `epochs`, `points` sampled per training frame, `affine` columns added; `checkpoint` (set by `prepare`, or given)
+    and `cubature_file` (an optimised cubature of the training mesh)."""
 
-    ckpt = load_checkpoint(checkpoint, expected_r=r)
-    W = evaluate_basis(ckpt, model.X)
-    stored = json.loads(Path(cubature_file).read_text()) if cubature_file else None
-    name = "licrom-affine" if ckpt.arch.get("affine") else "licrom"
-    solver = _solver(model, W, device, cubature, scheme, seed, name, stored)
-    solver.info["train_s"] = ckpt.train_seconds
-    return solver
+    name = "licrom"
+    parameters = _COMMON | {"r": None, "epochs": 100, "affine": False, "points": 512, "checkpoint": "",
+                            "shape": "", "cubature_file": ""}
+
+    def prepare(self, shape: str, trajectories: list[Path], out_dir: Path, suite: str) -> dict:
+        """Train on the shape's training trajectories (cached under out_dir)."""
+        return _train_licrom(shape, trajectories, self.params, out_dir, self.device, suite)
+
+    def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
+        """The network's basis at this mesh's rest positions, the stored optimised cubature, the training time."""
+        from solvers.licrom.train import evaluate_basis, load_checkpoint
+
+        p = self.params
+        self.checkpoint = load_checkpoint(p["checkpoint"], expected_r=p["r"])
+        stored = json.loads(Path(p["cubature_file"]).read_text()) if p["cubature_file"] else None
+        return evaluate_basis(self.checkpoint, model.X), stored, {"train_s": self.checkpoint.train_seconds}

@@ -10,10 +10,11 @@ laws of solvers/physics at the surface sample points x_p = X_p + W_p q (gradient
 W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the step, as the full solver does.
 
 Schemes:
-- "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky),
-  Armijo backtracking with the full solver's round-off slack, and, for the barrier law, a step cap that keeps
-  every contact point above the plane. Converged when |W dq|_inf / h < tol * L over all mesh vertices (the
-  full solver's measure; decoding dq costs one (3n x r) product).
+- "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky), run
+  by the shared loop of `solvers.newton` (Armijo backtracking with its round-off slack, and, for the barrier law,
+  a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt).
+  Converged when |W dq|_inf / h < tol * L over all mesh vertices (the full solver's measure; decoding dq costs
+  one (3n x r) product).
 - "projected_gradient": the LiCROM contact paper's scheme (docs/design.md). The sample points are the vertices of the
   cubature tets, each carrying the cubature estimate of its lumped mass w_i = rho/4 sum_{c owns i} w_c V_c,
   plus the contact points (force only, no mass). Every iteration decodes the points, evaluates the full-space
@@ -29,10 +30,10 @@ Schemes:
   a fixed 20 iterations leave the block nearly stuck (acceleration 0.57 instead of 3.21 m/s^2), and above the
   limit the iteration oscillates or diverges. Stops when |W dq|_inf / h < tol * L or after max_iter iterations.
 
-The solver works on the full `State` of solvers/simulate.py: it keeps (q, qdot) itself and writes
-state_out.x = X + W q, state_out.v = W qdot. A state_in that is not the one it produced last is first
-projected to the subspace (mass-weighted least squares). `q_history` holds (t, q) of every step since the last
-projection; `simulate_reduced` runs solvers.simulate.simulate and fills the trajectory's q per stored frame.
+The solver works on the full `State` of solvers/simulate.py, whose q and qdot fields carry the latent
+coordinates: it writes state_out.x = X + W q, state_out.v = W qdot, state_out.q, state_out.qdot. A state_in
+without latent coordinates (an initial state) is first projected to the subspace (mass-weighted least squares,
+`project`).
 """
 
 from __future__ import annotations
@@ -45,17 +46,15 @@ import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve, eigh
 
 from solvers.baselines import project
-from solvers.full.solver import ARMIJO_SLACK
 from solvers.licrom import kernels as K
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
+from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, minimise
 from solvers.physics import contact as pc
-from solvers.physics import friction as pf
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_gradients
-from solvers.simulate import simulate
+from solvers.physics.terms import BodyTerm, PointTerm, terms_of
 from solvers.step_stats import StepStats
-from solvers.trajectory import Trajectory
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
 """Jacobians B with at most this fraction of non-zeros and at least this many columns (local bases such as
@@ -183,7 +182,7 @@ def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.nda
 
 
 @dataclass
-class _Step:
+class ReducedStep:
     """Per-step constants: dt h [s], q^n and q_hat (r,), contact points at the start x_prev (p, 3) [m] and the
     lagged normal pressure fn (p,) [Pa] (None without friction)."""
 
@@ -217,7 +216,7 @@ class _SamplePoints:
         tets = m.tets[rm.cub_ids]
         vertices, local = np.unique(tets, return_inverse=True)
         local = local.reshape(tets.shape)
-        weight = lumped_mass(rm.wV, local, vertices.size, m.scenario.material.density)
+        weight = lumped_mass(rm.wV, local, vertices.size, m.density)
         Wv = rm.W[vertices].reshape(-1, rm.r)
         S = Wv.T @ (np.repeat(weight, 3)[:, None] * Wv)
         return cls(vertices, weight, local, shape_gradients(m.Dm_inv[rm.cub_ids]), S, cho_factor(S))
@@ -248,91 +247,63 @@ class ReducedSolver:
         self.armijo, self.max_halvings = armijo, max_halvings
         if name is not None:
             self.name = name
-        self.law = model.scenario.contact.law
+        self.law = model.contact.law
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
-        self.latent: ReducedState | None = None
-        self.q_history: list[tuple[float, np.ndarray]] = []
-        self._x_out: np.ndarray | None = None
+        terms = terms_of(model)
+        missing = [t.name for t in terms if not isinstance(t, (BodyTerm, PointTerm))]
+        if missing:
+            raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
+        self.body_terms = [t for t in terms if isinstance(t, BodyTerm)]
+        self.point_terms = [t for t in terms if isinstance(t, PointTerm)]
 
     # ----- state mapping ---------------------------------------------------------------------------------
-    def init_state(self, state: State) -> ReducedState:
-        """Project a full state to the subspace (mass-weighted least squares of x - X and of v), make it the
-        current latent state and the last entry of `q_history` (entries at or after its time are dropped: a
-        retried step or a new run replaces them)."""
+    def project(self, state: State) -> State:
+        """The same state with its latent coordinates: mass-weighted least squares of x - X (q) and of v (qdot)."""
         rm = self.reduced
-        self.latent = ReducedState(rm.project(state.x - self.model.X), rm.project(state.v), state.t)
-        kept = [(t, q) for t, q in self.q_history if t < state.t - 1e-12 * max(1.0, abs(state.t))]
-        self.q_history = kept + [(state.t, self.latent.q.copy())]
-        self._x_out = state.x
-        return self.latent
+        return State(state.x, state.v, state.t, rm.project(state.x - self.model.X), rm.project(state.v))
 
     def decode(self, latent: ReducedState) -> State:
-        """The full state X + W q, W qdot of a latent state."""
+        """The full state X + W q, W qdot of a latent state, carrying q and qdot."""
         rm = self.reduced
-        return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t)
-
-    def frame_latents(self, times: np.ndarray) -> np.ndarray:
-        """q (F, r) at the given times (e.g. a trajectory's frame times), from `q_history`."""
-        times = np.asarray(times, dtype=float)
-        t_hist = np.array([t for t, _ in self.q_history])
-        idx = np.abs(t_hist[None, :] - times[:, None]).argmin(axis=1)
-        if np.any(np.abs(t_hist[idx] - times) > 1e-9 * max(1.0, float(np.max(np.abs(times))))):
-            raise KeyError("some requested times were not stepped since the last projection")
-        return np.stack([self.q_history[i][1] for i in idx])
+        return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t, latent.q, latent.qdot)
 
     # ----- incremental potential -------------------------------------------------------------------------
-    def _point_terms(self, q: np.ndarray, st: _Step, order: int
+    def _point_terms(self, q: np.ndarray, st: ReducedStep, order: int
                      ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
-        """Contact and friction at the sample points: energy [J], per-point gradient (p, 3) [N] (order >= 1) and
-        Hessian blocks (p, 3, 3) [N/m] (order 2)."""
+        """The point terms (contact, damping, friction) at the sample points: energy [J], per-point gradient (p, 3)
+        [N] (order >= 1) and Hessian blocks (p, 3, 3) [N/m] (order 2)."""
         m, rm = self.model, self.reduced
         x = rm.point_positions(q)
-        c, n, d = m.scenario.contact, m.plane_normal, m.plane_offset
         E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
-        if self.law == "penalty":
-            kd = c.damping if m.has("damping") else 0.0
-            args = (x, st.x_prev, rm.area, n, d, c.stiffness, kd, st.h)
-            E += pc.penalty_energy(*args)
+        for term in self.point_terms:
+            e, gp, Hp = term.at_points(m, x, st.x_prev, rm.area, st.fn, st.h, order)
+            E += e
             if order >= 1:
-                g += pc.penalty_gradient(*args)
+                g += gp
             if order == 2:
-                H += pc.penalty_hessian(*args)
-        else:
-            phi = pc.signed_distance(x, n, d)
-            kA = c.barrier_stiffness * rm.area
-            E += float(kA @ pc.barrier(phi, c.barrier_distance))
-            if order >= 1:
-                g += (kA * pc.barrier_d1(phi, c.barrier_distance))[:, None] * n
-            if order == 2:
-                H += (kA * pc.barrier_d2(phi, c.barrier_distance))[:, None, None] * np.outer(n, n)
-        if st.fn is not None:
-            args = (x, st.x_prev, rm.area, st.fn, n, m.scenario.plane.friction, c.friction_stiffness, st.h)
-            E += pf.friction_energy(*args)
-            if order >= 1:
-                g += pf.friction_gradient(*args)
-            if order == 2:
-                H += pf.friction_hessian(*args)
+                H += Hp
         return E, (g if order >= 1 else None), (H if order == 2 else None)
 
-    def energy(self, q: np.ndarray, st: _Step) -> float:
-        """E(q) [J] of the step's incremental potential (up to a constant)."""
-        d = q - st.q_hat
-        E = 0.5 / st.h**2 * float(d @ self.reduced.M_r @ d) - float(self.reduced.gravity_q @ q)
-        if self.model.has("elasticity"):
-            E += self.reduced.elastic(q, K.ENERGY)[0]
-        if self.model.has("contact"):
+    def energy(self, q: np.ndarray, st: ReducedStep) -> float:
+        """E(q) [J] of the step's incremental potential (up to a constant): the body terms' reduced energies, then
+        the point terms at the sample points."""
+        E = 0.0
+        for term in self.body_terms:
+            E += term.reduced(self, q, st, 0)[0]
+        if self.point_terms:
             E += self._point_terms(q, st, 0)[0]
         return E
 
-    def gradient_hessian(self, q: np.ndarray, st: _Step) -> tuple[np.ndarray, np.ndarray]:
+    def gradient_hessian(self, q: np.ndarray, st: ReducedStep) -> tuple[np.ndarray, np.ndarray]:
         """dE/dq (r,) [N] and the PSD-projected d2E/dq2 (r, r) [N/m]."""
         rm = self.reduced
-        g = rm.M_r @ (q - st.q_hat) / st.h**2 - rm.gravity_q
-        H = rm.M_r / st.h**2
-        if self.model.has("elasticity"):
-            _, ge, He = rm.elastic(q, K.HESSIAN)
-            g, H = g + ge, H + He
-        if self.model.has("contact"):
+        g, H = np.zeros(rm.r), np.zeros((rm.r, rm.r))
+        for term in self.body_terms:
+            _, gt, Ht = term.reduced(self, q, st, 2)
+            g = g + gt
+            if Ht is not None:
+                H = H + Ht
+        if self.point_terms:
             _, gp, Hp = self._point_terms(q, st, 2)
             g = g + rm.Wp.reshape(-1, rm.r).T @ gp.ravel()
             active = np.flatnonzero(np.abs(Hp).sum(axis=(1, 2)) > 0.0)
@@ -342,18 +313,17 @@ class ReducedSolver:
         return g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
-    def _begin(self, latent: ReducedState, h: float) -> _Step:
+    def _begin(self, latent: ReducedState, h: float) -> ReducedStep:
         """Per-step constants; the friction normal pressure is lagged from the start of the step."""
         m, rm = self.model, self.reduced
         x_prev = rm.point_positions(latent.q)
         fn = None
         if m.has("friction"):
-            c = m.scenario.contact
+            c = m.contact
             v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
-            kd = c.damping if m.has("damping") else 0.0
-            fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness, kd,
-                                    c.barrier_stiffness, c.barrier_distance)
-        return _Step(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
+            fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness,
+                                    m.contact_damping, c.barrier_stiffness, c.barrier_distance)
+        return ReducedStep(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
         """|W dq|_inf / h over all mesh vertices [m/s]."""
@@ -365,58 +335,32 @@ class ReducedSolver:
             return 1.0
         rm, n = self.reduced, self.model.plane_normal
         phi = rm.point_positions(q) @ n - self.model.plane_offset
-        rate = (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n
-        approaching = rate < 0
-        if not approaching.any():
-            return 1.0
-        return float(min(1.0, 0.9 * np.min(phi[approaching] / -rate[approaching])))
+        return feasible_step(phi, (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n)
 
-    def _initial_guess(self, st: _Step) -> np.ndarray:
+    def _initial_guess(self, st: ReducedStep) -> np.ndarray:
         """q_hat, shortened for the barrier law so that no contact point crosses the plane."""
         return st.q_prev + self._max_feasible_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
-    def _newton(self, st: _Step) -> tuple[np.ndarray, int, float, int, bool]:
-        """Minimise E by Newton; returns (q, iterations, residual [m/s], halvings, converged)."""
-        q = self._initial_guess(st)
-        E = self.energy(q, st)
-        tol_v = self.tol * self.model.L
-        halvings, residual, it = 0, np.inf, 0
-        for it in range(1, self.max_iter + 1):
-            g, H = self.gradient_hessian(q, st)
-            dq = cho_solve(cho_factor(H), -g)
-            residual = self._velocity_norm(dq, st.h)
-            if residual < tol_v:
-                return q + self._max_feasible_step(q, dq) * dq, it, residual, halvings, True
-            g_dot = float(g @ dq)
-            alpha = self._max_feasible_step(q, dq)
-            while True:
-                E_new = self.energy(q + alpha * dq, st)
-                if np.isfinite(E_new) and E_new <= E + self.armijo * alpha * g_dot + ARMIJO_SLACK * abs(E):
-                    break
-                alpha *= 0.5
-                halvings += 1
-                if alpha < 2.0 ** -self.max_halvings:
-                    break
-            q, E = q + alpha * dq, E_new
-        return q, it, residual, halvings, False
+    def _newton(self, st: ReducedStep) -> NewtonResult:
+        """Minimise E by the shared Newton loop (`solvers.newton`)."""
+        return minimise(_StepProblem(self, st), self._initial_guess(st), self.tol * self.model.L, self.max_iter,
+                        LineSearch(self.armijo, self.max_halvings))
 
-    def _sample_gradient_rhs(self, q: np.ndarray, st: _Step) -> np.ndarray:
+    def _sample_gradient_rhs(self, q: np.ndarray, st: ReducedStep) -> np.ndarray:
         """sum_i W_i^T g_i over the sample points: g_i the full-space gradient of E at the decoded points [N]."""
-        m, rm, pts = self.model, self.reduced, self.samples
+        rm, pts = self.reduced, self.samples
         Wv = rm.W[pts.vertices]
         u, u_hat = (Wv.reshape(-1, rm.r) @ q).reshape(-1, 3), (Wv.reshape(-1, rm.r) @ st.q_hat).reshape(-1, 3)
-        grad = pts.weight[:, None] * ((u - u_hat) / st.h**2 - (m.gravity if m.has("gravity") else 0.0))
-        if m.has("elasticity"):
-            _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
-            forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, pts.grad_shape)
-            np.add.at(grad, pts.local, forces)
+        grad = np.zeros_like(u)
+        for term in self.body_terms:
+            grad += term.sample_gradient(self, q, st, u, u_hat)
         rhs = Wv.reshape(-1, rm.r).T @ grad.ravel()
-        if m.has("contact"):
+        if self.point_terms:
             rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
         return rhs
 
-    def _projected_gradient(self, st: _Step) -> tuple[np.ndarray, int, float, int, bool]:
-        """The paper's scheme; returns (q, iterations, residual [m/s], 0, converged)."""
+    def _projected_gradient(self, st: ReducedStep) -> NewtonResult:
+        """The paper's scheme (no line search: halvings, linear iterations and stalls are 0)."""
         q = self._initial_guess(st)
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
@@ -427,8 +371,8 @@ class ReducedSolver:
             q = q + dq
             residual = self._velocity_norm(dq, st.h)
             if residual < tol_v:
-                return q, it, residual, 0, True
-        return q, it, residual, 0, False
+                return NewtonResult(q, it, residual, 0, 0, 0, True)
+        return NewtonResult(q, it, residual, 0, 0, 0, False)
 
     def projected_gradient_alpha_limit(self, state: State, dt: float) -> float:
         """Largest stable step size alpha of the projected-gradient scheme at `state` (projected to the subspace):
@@ -446,22 +390,39 @@ class ReducedSolver:
         """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics
         (`newton_iters` counts the iterations of either scheme; halvings are 0 for the projected gradient)."""
         t0 = time.perf_counter()
-        latent = self.latent if state_in.x is self._x_out and self.latent is not None else self.init_state(state_in)
+        if state_in.q is None:
+            state_in = self.project(state_in)
+        latent = ReducedState(state_in.q, state_in.qdot, state_in.t)
         st = self._begin(latent, dt)
         solve = self._newton if self.scheme == "newton" else self._projected_gradient
-        q, iters, residual, halvings, converged = solve(st)
-        self.latent = ReducedState(q, (q - latent.q) / dt, latent.t + dt)
-        self.q_history.append((self.latent.t, q.copy()))
-        out = self.decode(self.latent)
-        state_out.x, state_out.v, state_out.t = out.x, out.v, out.t
-        self._x_out = state_out.x
-        return StepStats(iters, residual, halvings, converged, time.perf_counter() - t0)
+        res = solve(st)
+        q = res.y
+        out = self.decode(ReducedState(q, (q - latent.q) / dt, latent.t + dt))
+        state_out.x, state_out.v, state_out.t, state_out.q, state_out.qdot = out.x, out.v, out.t, out.q, out.qdot
+        return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
+                         stalls=res.stalls)
 
 
-def simulate_reduced(model: Model, solver: ReducedSolver, state0: State | None = None, progress: bool = False,
-                     meta: dict | None = None) -> tuple[Trajectory, list[StepStats]]:
-    """solvers.simulate.simulate with the reduced solver, plus the latent coordinates per stored frame in
-    `trajectory.q` (F, r)."""
-    traj, stats = simulate(model, solver, state0, progress, meta)
-    traj.q = solver.frame_latents(traj.t)
-    return traj, stats
+class _StepProblem:
+    """One reduced step as a `solvers.newton.NewtonProblem` over the latent coordinates q (r,)."""
+
+    def __init__(self, solver: ReducedSolver, st: ReducedStep) -> None:
+        self.solver, self.st = solver, st
+
+    def energy(self, q: np.ndarray) -> float:
+        """E(q) [J]."""
+        return self.solver.energy(q, self.st)
+
+    def direction(self, q: np.ndarray) -> Direction:
+        """Newton direction from the PSD-projected dense Hessian (Cholesky)."""
+        g, H = self.solver.gradient_hessian(q, self.st)
+        dq = cho_solve(cho_factor(H), -g)
+        return Direction(dq, float(g @ dq))
+
+    def step_norm(self, dq: np.ndarray) -> float:
+        """|W dq|_inf / h over all mesh vertices [m/s]."""
+        return self.solver._velocity_norm(dq, self.st.h)
+
+    def max_step(self, q: np.ndarray, dq: np.ndarray) -> float:
+        """The barrier law's feasible-step cap (1 for the penalty law)."""
+        return self.solver._max_feasible_step(q, dq)

@@ -8,11 +8,23 @@ the start of the step (`damped`, lagged like friction's normal force, so that th
 continuous; gating on the current penetration would make it jump where a point crosses the plane).
 Barrier law (IPC): energy density kappa b(phi), b(d) = -(d - dhat)^2 log(d / dhat) for 0 < d < dhat, else 0.
 Arrays: x (p, 3) point positions, area (p,) [m^2]; energies in J, gradients (p, 3) in N, Hessians (p, 3, 3).
+The terms `PenaltyContact`, `ContactDamping` (the penalty law's damping part) and `BarrierContact` evaluate them
+at a model's contact points.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+from solvers.physics.terms import Evaluation, PointTerm, register
+
+if TYPE_CHECKING:
+    import warp as wp
+
+    from solvers.full.solver import FullSpaceSolver
+    from solvers.model import Model
 
 
 #: Penetration scale of the automatic penalty stiffness, as a fraction of the body size L.
@@ -109,3 +121,85 @@ def lagged_pressure(law: str, x, v, normal, offset, ke, kd, kappa, dhat) -> np.n
         return normal_pressure(x, v, normal, offset, ke, kd)
     return barrier_pressure(x, normal, offset, kappa, dhat)
 
+
+
+class _Penalty(PointTerm):
+    """The penalty law with stiffness `_ke(model)` and damping `_kd(model)`."""
+
+    def _ke(self, model: Model) -> float:
+        return 0.0
+
+    def _kd(self, model: Model) -> float:
+        return 0.0
+
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self._ke(model), self._kd(model), h)
+        return (penalty_energy(*args), penalty_gradient(*args) if order >= 1 else None,
+                penalty_hessian(*args) if order == 2 else None)
+
+    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+        import warp as wp
+
+        from solvers.full import kernels as K
+
+        m = solver.model
+        wp.launch(K.penalty_contact_kernel, m.points.size, device=solver.device, inputs=[
+            x, solver.x_prev, solver.points, solver.area, solver.normal, m.plane_offset, self._ke(m), self._kd(m), h,
+            solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
+
+
+@register
+class PenaltyContact(_Penalty):
+    """1/2 k_e c^2 per unit area, c the penetration (the paper's soft contact)."""
+
+    name = "penalty_contact"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("contact") and model.contact.law == "penalty"
+
+    def _ke(self, model: Model) -> float:
+        return model.contact.stiffness
+
+
+@register
+class BarrierContact(PointTerm):
+    """kappa b(phi) per unit area, the IPC log barrier."""
+
+    name = "barrier_contact"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("contact") and model.contact.law == "barrier"
+
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        n, dhat = model.plane_normal, model.contact.barrier_distance
+        phi = signed_distance(x, n, model.plane_offset)
+        kA = model.contact.barrier_stiffness * area
+        E = float(kA @ barrier(phi, dhat))
+        g = (kA * barrier_d1(phi, dhat))[:, None] * n if order >= 1 else None
+        H = (kA * barrier_d2(phi, dhat))[:, None, None] * np.outer(n, n) if order == 2 else None
+        return E, g, H
+
+    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+        import warp as wp
+
+        from solvers.full import kernels as K
+
+        m, c = solver.model, solver.model.contact
+        wp.launch(K.barrier_contact_kernel, m.points.size, device=solver.device, inputs=[
+            x, solver.points, solver.area, solver.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance,
+            solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
+
+
+@register
+class ContactDamping(_Penalty):
+    """h k_d / 2 max(0, -v.n)^2 per unit area at the points penetrating at the start of the step."""
+
+    name = "damping"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("damping")
+
+    def _kd(self, model: Model) -> float:
+        return model.contact_damping

@@ -6,11 +6,22 @@ eps_v = mu f_n / k_f. So the force is -A min(k_f |v_t|, mu f_n) v_t / |v_t|: vis
 Coulomb above. f0(s) = s^2 / (2 eps_v) for s < eps_v, s - eps_v / 2 beyond. A body that should stick creeps
 at the speed (tangential load per area) / k_f.
 Arrays: x, x_prev (p, 3), area (p,) [m^2], fn (p,) [Pa]; energies J, gradients (p, 3) N, Hessians (p, 3, 3).
+`Friction` is the term at a model's contact points.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+from solvers.physics.terms import Evaluation, PointTerm, register
+
+if TYPE_CHECKING:
+    import warp as wp
+
+    from solvers.full.solver import FullSpaceSolver
+    from solvers.model import Model
 
 
 def f0(s: np.ndarray, eps_v: np.ndarray) -> np.ndarray:
@@ -82,3 +93,29 @@ def creep_speed(area: np.ndarray, fn: np.ndarray, mu: float, kf: float, load: fl
     lower = np.concatenate([[0.0], eps[:-1]])
     ok = (s >= lower) & (s <= eps)
     return float(s[np.argmax(ok)])
+
+
+@register
+class Friction(PointTerm):
+    """The lagged Coulomb friction potential at the contact points (normal pressure `fn`)."""
+
+    name = "friction"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("friction")
+
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
+                  h: float, order: int) -> Evaluation:
+        args = (x, x_prev, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)
+        return (friction_energy(*args), friction_gradient(*args) if order >= 1 else None,
+                friction_hessian(*args) if order == 2 else None)
+
+    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+        import warp as wp
+
+        from solvers.full import kernels as K
+
+        m = solver.model
+        wp.launch(K.friction_kernel, m.points.size, device=solver.device, inputs=[
+            x, solver.x_prev, solver.points, solver.area, solver.fn, solver.normal, m.friction,
+            m.contact.friction_stiffness, h, solver.diag, solver.grad, solver.values, solver.energy_buf, mode])

@@ -3,12 +3,25 @@
 Psi(F) = mu/2 (I_C - 3) + lam/2 (J - alpha)^2 - mu/2 log(I_C + 1),  alpha = 1 + 3 mu / (4 lam),
 with I_C = |F|_F^2, J = det F and (mu, lam) re-parametrised from the Lame parameters so that small strains
 match linear elasticity: mu = 4/3 mu_L, lam = lambda_L + 5/6 mu_L. Batched over leading axes: F has shape
-(..., 3, 3). Vectorised 3x3 quantities use row-major `vec(F)[3 i + j] = F[i, j]`.
+(..., 3, 3). Vectorised 3x3 quantities use row-major `vec(F)[3 i + j] = F[i, j]`. `Elasticity` is the term
+sum_e V_e Psi(F_e) of the incremental potential.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+import scipy.sparse as sp
+
+from solvers.physics.terms import BodyTerm, Evaluation, StepData, register
+
+if TYPE_CHECKING:
+    import warp as wp
+
+    from solvers.full.solver import FullSpaceSolver
+    from solvers.licrom.reduced import ReducedSolver, ReducedStep
+    from solvers.model import Model
 
 
 def lame_parameters(youngs_modulus: float, poisson_ratio: float) -> tuple[float, float]:
@@ -129,3 +142,60 @@ def element_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: n
     # d vec(F)[3 i + j] / d x[a, alpha] = delta_{i alpha} g[a, j]
     B = np.einsum("il,eaj->eijal", np.eye(3), g).reshape(-1, 9, 12)
     return vol[:, None, None] * np.einsum("eki,ekl,elj->eij", B, H9, B)
+
+
+@register
+class Elasticity(BodyTerm):
+    """sum_e V_e Psi(F_e), stable Neo-Hookean; the Hessian projected per element."""
+
+    name = "elasticity"
+
+    def applies(self, model: Model) -> bool:
+        return model.has("elasticity")
+
+    def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
+        return elastic_energy(x, model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
+
+    def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
+        return elastic_gradient(x, model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
+
+    def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
+        He = element_hessians(x, model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
+        idx = (3 * model.tets[:, :, None] + np.arange(3)).reshape(-1, 12)  # (m, 12) dof of each element row
+        rows = np.repeat(idx, 12, axis=1).ravel()
+        cols = np.tile(idx, (1, 12)).ravel()
+        return sp.csr_matrix((He.ravel(), (rows, cols)), shape=(3 * model.n, 3 * model.n))
+
+    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+        import warp as wp
+
+        from solvers.full import kernels as K
+
+        m, d = solver.model, solver.device
+        ins = [x, solver.tets, solver.Dm_inv, solver.vol, m.mu_snh, m.lam_snh, solver.alpha_snh]
+        if mode == 0:
+            wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.energy_buf])
+        else:
+            wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.grad])
+            solver.elem_blocks.zero_()
+            wp.launch(K.elastic_hessian_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.elem_blocks])
+            wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
+                      inputs=[solver.elem_blocks, solver.blockmap, solver.values])
+
+    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
+        """The cubature elastic energy with its gradient and PSD-projected Hessian (`ReducedModel.elastic`)."""
+        from solvers.licrom import kernels as K
+
+        return rs.reduced.elastic(q, (K.ENERGY, K.STRESS, K.HESSIAN)[order])
+
+    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
+                        u_hat: np.ndarray) -> np.ndarray:
+        """The cubature tets' elastic forces w_c V_c P_c g_a on their vertices."""
+        from solvers.licrom import kernels as K
+
+        m, rm, pts = rs.model, rs.reduced, rs.samples
+        _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
+        forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, pts.grad_shape)
+        out = np.zeros((pts.vertices.size, 3))
+        np.add.at(out, pts.local, forces)
+        return out

@@ -1,0 +1,26 @@
+"""The full-space Newton solver under the solver contract (`solvers.contract`)."""
+
+from __future__ import annotations
+
+from solvers.contract import Solver
+from solvers.full.solver import FullSpaceSolver, NewtonSettings
+from solvers.model import Model, State
+from solvers.step_stats import StepStats
+
+
+class FullSpace(Solver):
+    """Backward Euler on every vertex (`solvers.full.solver.FullSpaceSolver`): Newton tolerance `tol` [1/s,
+    relative to L], `linear` solve (`direct`, `cg`, `auto`) and `max_iter` Newton iterations per attempt."""
+
+    name = "full"
+    parameters = {"tol": NewtonSettings.tol, "linear": NewtonSettings.linear, "max_iter": NewtonSettings.max_iter}
+
+    def setup(self, model: Model) -> None:
+        """The solver's kernels and buffers on `model`."""
+        p = self.params
+        self.solver = FullSpaceSolver(model, device=self.device, settings=NewtonSettings(
+            tol=p["tol"], linear=p["linear"], max_iter=p["max_iter"]))
+
+    def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
+        """One Newton-solved backward-Euler step."""
+        return self.solver.step(state_in, state_out, dt)

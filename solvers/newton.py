@@ -1,0 +1,117 @@
+"""The one Newton loop of every implicit solver: Armijo line search, the barrier's feasible-step cap, and the
+convergence test in velocity units.
+
+A backend (full-space warp kernels, the reduced subspace, the static solver) describes its problem through a
+`NewtonProblem`: the energy at a point, the Newton direction with its directional derivative, the step norm in
+velocity units and the largest feasible step. `minimise` runs the loop on it; the unknown y is any numpy array
+(vertex positions (n, 3) [m], latent coordinates (r,)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+#: Round-off allowance of the Armijo test, relative to |E|: a trial point may exceed the sufficient-decrease line by
+#: this much. Larger (1e-12 was tried) lets Newton cycle between the kinks of the penalty and friction laws (their
+#: second derivatives jump) with the energy flat to 1e-12 but the iterate never settling; 1e-14 is a few ulps of the
+#: summed energy.
+ARMIJO_SLACK = 1e-14
+
+#: Fraction of the distance to the plane a contact point may cover in one step of the barrier law (the barrier is
+#: infinite on the plane: a step must stop short of it).
+FEASIBLE_FRACTION = 0.9
+
+
+@dataclass(frozen=True)
+class LineSearch:
+    """Armijo backtracking: sufficient-decrease factor `armijo` [-], at most `max_halvings` halvings of alpha."""
+
+    armijo: float = 1e-4
+    max_halvings: int = 40
+
+
+@dataclass(frozen=True)
+class Direction:
+    """A Newton direction dy (shape of y), the directional derivative g . dy [J] and the linear iterations spent."""
+
+    dy: np.ndarray
+    g_dot: float
+    linear_iters: int = 0
+
+
+@dataclass(frozen=True)
+class NewtonResult:
+    """The end point y, iterations, last step norm residual [m/s], line-search halvings, linear iterations,
+    stalls (iterations whose line search found no decrease) and whether the step norm fell below tolerance."""
+
+    y: np.ndarray
+    iters: int
+    residual: float
+    halvings: int
+    linear_iters: int
+    stalls: int
+    converged: bool
+
+
+class NewtonProblem(Protocol):
+    """What `minimise` needs of a backend."""
+
+    def energy(self, y: np.ndarray) -> float:
+        """E(y) [J]."""
+        ...
+
+    def direction(self, y: np.ndarray) -> Direction:
+        """The Newton direction at y (from the PSD-projected Hessian)."""
+        ...
+
+    def step_norm(self, dy: np.ndarray) -> float:
+        """The size of a step dy in velocity units [m/s] (|dx|_inf / h over the mesh vertices)."""
+        ...
+
+    def max_step(self, y: np.ndarray, dy: np.ndarray) -> float:
+        """Largest alpha <= 1 for which y + alpha dy is admissible (1 without a barrier)."""
+        ...
+
+
+def feasible_step(phi: np.ndarray, rate: np.ndarray) -> float:
+    """Largest alpha <= 1 keeping every contact point strictly above the plane: phi (p,) signed distances [m],
+    rate (p,) their change along the step [m]; approaching points cover at most FEASIBLE_FRACTION of phi."""
+    approaching = rate < 0
+    if not approaching.any():
+        return 1.0
+    return float(min(1.0, FEASIBLE_FRACTION * np.min(phi[approaching] / -rate[approaching])))
+
+
+def minimise(problem: NewtonProblem, y: np.ndarray, tol_v: float, max_iter: int,
+             search: LineSearch = LineSearch()) -> NewtonResult:
+    """Newton's method from y: stop when the step norm is below tol_v [m/s] (taking that last step, capped), or
+    when a line search finds no decrease down to alpha = 2^-max_halvings (a stall: y is kept, not converged), or
+    after max_iter iterations (not converged)."""
+    E = problem.energy(y)
+    halvings = lin_iters = stalls = 0
+    residual, it = np.inf, 0
+    for it in range(1, max_iter + 1):
+        d = problem.direction(y)
+        lin_iters += d.linear_iters
+        residual = problem.step_norm(d.dy)
+        if residual < tol_v:
+            y = y + problem.max_step(y, d.dy) * d.dy
+            return NewtonResult(y, it, residual, halvings, lin_iters, stalls, True)
+        alpha = problem.max_step(y, d.dy)
+        while True:
+            E_new = problem.energy(y + alpha * d.dy)
+            if np.isfinite(E_new) and E_new <= E + search.armijo * alpha * d.g_dot + ARMIJO_SLACK * abs(E):
+                break
+            alpha *= 0.5
+            halvings += 1
+            if alpha < 2.0 ** -search.max_halvings:
+                break
+        if not (np.isfinite(E_new) and alpha >= 2.0 ** -search.max_halvings):
+            stalls += 1  # no decrease along dy (e.g. a non-finite direction): keep y, report not converged
+            break
+        y = y + alpha * d.dy
+        E = E_new
+    return NewtonResult(y, it, residual, halvings, lin_iters, stalls, False)

@@ -1,0 +1,89 @@
+"""A solver added through the contract alone: registered from this test, run in a small matrix by the CLI and the
+runner (in worker processes), with no other file of the project knowing it."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from solvers import registry
+from solvers.contract import Solver, SolverParameterError
+from solvers.model import Model, State
+from solvers.step_stats import StepStats
+
+SUITE = """
+[suite]
+name = "toy"
+description = "a free fall and a drop onto a plane"
+
+[base.mesh]
+name = "block"
+resolution = "coarse"
+
+[base.time]
+dt = 0.01
+duration = 0.1
+
+[[axis]]
+name = "case"
+values = [{ label = "fall", plane = false }, { label = "drop", "initial.clearance" = 0.01 }]
+"""
+
+
+class Ballistic(Solver):
+    """Rigid ballistic motion under gravity, backward Euler: v' = v + h g, x' = x + h v'. Declines contact."""
+
+    name = "ballistic"
+    parameters = {"gravity_scale": 1.0}
+
+    def skip(self, model: Model) -> str | None:
+        return "ballistic motion knows no contact" if model.has("contact") else None
+
+    def setup(self, model: Model) -> None:
+        self.g = self.params["gravity_scale"] * (model.gravity if model.has("gravity") else np.zeros(3))
+
+    def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
+        t0 = time.perf_counter()
+        state_out.v = state_in.v + dt * self.g
+        state_out.x = state_in.x + dt * state_out.v
+        state_out.t = state_in.t + dt
+        return StepStats(1, 0.0, 0, True, time.perf_counter() - t0)
+
+
+@pytest.fixture
+def ballistic(monkeypatch):
+    monkeypatch.setattr(registry, "_ENTRIES", registry.entries())  # registered for this test only
+    registry.register(Ballistic)
+    return Ballistic
+
+
+def test_a_registered_toy_solver_runs_in_the_matrix(ballistic, tmp_path, capsys):
+    suite = tmp_path / "toy.toml"
+    suite.write_text(SUITE)
+    out = tmp_path / "out"
+    assert main(["list"]) == 0 and "ballistic" in capsys.readouterr().out
+    assert main(["run", "--suite", str(suite), "--solvers", "ballistic", "--out", str(out), "--no-report"]) == 0
+    rows = pd.read_csv(out / "results.csv").set_index(["scenario", "solver"])
+    assert set(rows.index) == {("toy/fall", "full"), ("toy/drop", "full"), ("toy/fall", "ballistic"),
+                               ("toy/drop", "ballistic")}
+    fall = rows.loc[("toy/fall", "ballistic")]
+    # a free body under uniform gravity does not deform: the full-space reference falls ballistically too
+    assert fall["status"] == "ok" and fall["pos_rmse_rel"] < 1e-6 and fall["newton_iters_mean"] == 1
+    drop = rows.loc[("toy/drop", "ballistic")]
+    assert drop["status"] == "failed" and "knows no contact" in drop["failure"]
+
+
+def test_a_solver_rejects_parameters_it_does_not_declare(ballistic):
+    with pytest.raises(SolverParameterError, match="gravity_scal"):
+        registry.get_solver("ballistic")(gravity_scal=2.0)
+    assert registry.get_solver("ballistic")(gravity_scale=0.0).params == {"gravity_scale": 0.0}
+
+
+def test_registering_a_non_solver_fails_clearly():
+    with pytest.raises(TypeError, match="Solver subclass"):
+        registry.register(Path)
