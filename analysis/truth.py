@@ -1,0 +1,182 @@
+"""The ground truth of a scenario and the cost of accuracy: the time-step ladder's stopping rule, its Richardson
+error estimate, undecidable verdicts, and the accuracy-for-time frontier (`speedup_equal_accuracy`).
+
+A ladder runs the full-space solver at dt, dt/2, dt/4, ... (levels k = 0, 1, ...; frames at the same times). Its
+differences d_k = pos_rmse_rel(x_{k-1}, x_k) (fractions of L, over the shared frames) decide when it stops: at the
+first level whose difference is at most `tol` (certified), or at `depth` (uncertified). The truth is the finest
+run; its error is estimated by Richardson from the observed order (`richardson`).
+
+The frontier of a scenario is err_truth (against the truth) versus cost, wall_s_per_sim_s (stepping wall time per
+simulated second). `speedup_equal_accuracy` of any run is the full-space ladder's cost interpolated log-log at the
+run's err_truth, divided by the run's own cost (`full_space_cost`).
+
+Every function is pure: numbers and row dicts in, numbers and row dicts out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+#: Formal order of accuracy of each time integrator (the upper clamp of the observed order).
+FORMAL_ORDER: dict[str, int] = {"backward-euler": 1, "bdf2": 2}
+#: Lower clamp of the observed order: a ladder whose differences shrink more slowly than 2^-0.25 per halving (or
+#: not at all) is far from its asymptotic range; its estimate is then d_K / (2^0.25 - 1) = 5.3 d_K.
+MIN_ORDER = 0.25
+#: The order assumed with two levels only (nothing to observe it from): first order, the rate that contact and
+#: friction hold every integrator to, so the estimate is the last difference itself.
+TWO_LEVEL_ORDER = 1.0
+#: An accuracy verdict whose threshold is below this multiple of an uncertified truth's error estimate is
+#: undecidable: the truth is not known well enough to tell the run's error from the truth's own.
+UNDECIDABLE_FACTOR = 3.0
+
+
+@dataclass(frozen=True)
+class TruthEstimate:
+    """How good a ladder's finest run is as the truth.
+
+    level: index K of the finest run (dt / 2^K); certified: d_K <= tol; err_est: the Richardson estimate of the
+    finest run's error [fraction of L] (None with a single run); order: the order p the estimate used;
+    order_observed: log2(d_{K-1} / d_K) before clamping (None with fewer than three levels).
+    """
+
+    level: int
+    certified: bool
+    err_est: float | None
+    order: float | None
+    order_observed: float | None
+
+
+def ladder_continues(differences: Sequence[float], tol: float, depth: int) -> bool:
+    """Whether the ladder needs another level: fewer than one difference yet, or its last difference above `tol`
+    and fewer than `depth` halvings done. `differences` are d_1..d_K [fraction of L]."""
+    if not differences:
+        return depth >= 1
+    return differences[-1] > tol and len(differences) < depth
+
+
+def observed_order(d_coarse: float, d_fine: float) -> float:
+    """p = log2(d_coarse / d_fine) from two successive differences (inf when d_fine is 0, -inf when only
+    d_coarse is)."""
+    if d_fine <= 0.0:
+        return math.inf if d_coarse > 0.0 else 0.0
+    if d_coarse <= 0.0:
+        return -math.inf
+    return math.log2(d_coarse / d_fine)
+
+
+def richardson(differences: Sequence[float], integrator: str) -> tuple[float | None, float | None, float | None]:
+    """(err_est, p, p_observed) of the finest run of a ladder with differences d_1..d_K [fraction of L]:
+    err_est = d_K / (2^p - 1), p = log2(d_{K-1} / d_K) clamped to [MIN_ORDER, the integrator's formal order] (a
+    larger observed order is pre-asymptotic luck, a smaller one gives the conservative MIN_ORDER); with one
+    difference (two levels) p = TWO_LEVEL_ORDER; with none, nothing is estimated."""
+    if not differences:
+        return None, None, None
+    if integrator not in FORMAL_ORDER:
+        raise ValueError(f"integrator {integrator!r}: not one of {sorted(FORMAL_ORDER)}")
+    d = float(differences[-1])
+    if len(differences) == 1:
+        p, observed = min(TWO_LEVEL_ORDER, FORMAL_ORDER[integrator]), None
+    else:
+        observed = observed_order(float(differences[-2]), d)
+        p = min(max(observed, MIN_ORDER), float(FORMAL_ORDER[integrator]))
+    return d / (2.0 ** p - 1.0), p, observed
+
+
+def assess_ladder(differences: Sequence[float], tol: float, integrator: str) -> TruthEstimate:
+    """The truth of a finished ladder: its finest level, whether its last difference met `tol`, and the
+    Richardson estimate (`richardson`)."""
+    est, p, observed = richardson(differences, integrator)
+    certified = bool(differences) and differences[-1] <= tol
+    return TruthEstimate(level=len(differences), certified=certified, err_est=est, order=p, order_observed=observed)
+
+
+def decidable(limit: float, certified: bool, err_est: float | None, factor: float = UNDECIDABLE_FACTOR) -> bool:
+    """Whether an accuracy verdict `error <= limit` can be judged against a truth: always for a certified truth,
+    else only when limit >= factor x its error estimate (never when the estimate is unknown)."""
+    if certified:
+        return True
+    if err_est is None or not math.isfinite(err_est):
+        return False
+    return limit >= factor * err_est
+
+
+def wall_s_per_sim_s(step_wall_s: Sequence[float], dt: float) -> float | None:
+    """Stepping wall time per simulated second [s/s]: sum of the steps' wall times [s] / (steps x dt [s]); the
+    warm-up step is not among them (`solvers.run`). None without steps."""
+    if not step_wall_s or dt <= 0.0:
+        return None
+    return float(sum(step_wall_s)) / (len(step_wall_s) * dt)
+
+
+def pareto_front(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The (err, cost) points no other point beats on both: cost increasing, err strictly decreasing. Points
+    with a non-positive or non-finite err or cost are left out (a truth's own err is 0)."""
+    ok = sorted((float(e), float(c)) for e, c in points
+                if math.isfinite(e) and math.isfinite(c) and e > 0.0 and c > 0.0)
+    front: list[tuple[float, float]] = []
+    for e, c in sorted(ok, key=lambda p: (p[1], p[0])):
+        if not front or e < front[-1][0]:
+            front.append((e, c))
+    return front
+
+
+def full_space_cost(front: Sequence[tuple[float, float]], err: float) -> tuple[float | None, str]:
+    """(cost, note): the full-space cost at accuracy `err` on a Pareto front of (err, cost) ladder points
+    (`pareto_front`), interpolated linearly in (log err, log cost).
+
+    Beyond the coarsest point (a less accurate run) the first segment is extrapolated and the note says so; a
+    run more accurate than the most accurate point gets no cost and the note `more accurate than the ladder`;
+    no cost either with an empty front or a single point that `err` does not equal.
+    """
+    if not front:
+        return None, "no ladder"
+    if err < front[-1][0]:
+        return None, "more accurate than the ladder"
+    if len(front) == 1:
+        return (front[0][1], "") if err == front[0][0] else (None, "one ladder point")
+    if err > front[0][0]:
+        (e0, c0), (e1, c1), note = front[0], front[1], "extrapolated beyond the coarsest ladder run"
+    else:
+        i = next(i for i in range(len(front) - 1) if front[i + 1][0] <= err)
+        (e0, c0), (e1, c1), note = front[i], front[i + 1], ""
+    slope = math.log(c1 / c0) / math.log(e1 / e0)
+    return c0 * math.exp(slope * math.log(err / e0)), note
+
+
+def speedup_equal_accuracy(front: Sequence[tuple[float, float]], err: float, cost: float) -> tuple[float | None, str]:
+    """(speedup, note): `full_space_cost(front, err)` / `cost` (None with the note where there is no cost)."""
+    full, note = full_space_cost(front, err)
+    return (None if full is None or cost <= 0.0 else full / cost), note
+
+
+def _number(value: object) -> float | None:
+    """A finite float, or None for a missing, empty or non-numeric value."""
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
+    """Rows with `speedup_equal_accuracy` and `frontier_note` on every row that has err_truth and
+    wall_s_per_sim_s: against the Pareto front of its scenario's ladder rows (rows with a non-empty `ladder`,
+    every integrator pooled: the cheapest full-space run at each accuracy), `speedup_equal_accuracy`. Rows of
+    scenarios without ladder rows, and rows without the two figures, are returned unchanged."""
+    fronts: dict[object, list[tuple[float, float]]] = {}
+    for r in rows:
+        if r.get("ladder") and r.get("status") == "ok":
+            e, c = _number(r.get("err_truth")), _number(r.get("wall_s_per_sim_s"))
+            if e is not None and c is not None:
+                fronts.setdefault(r["scenario"], []).append((e, c))
+    fronts = {k: pareto_front(v) for k, v in fronts.items()}
+    out = []
+    for r in rows:
+        e, c = _number(r.get("err_truth")), _number(r.get("wall_s_per_sim_s"))
+        if r.get("scenario") in fronts and e is not None and c is not None and r.get("status") == "ok":
+            speedup, note = speedup_equal_accuracy(fronts[r["scenario"]], e, c)
+            r = dict(r) | {"speedup_equal_accuracy": speedup, "frontier_note": note}
+        out.append(dict(r))
+    return out
