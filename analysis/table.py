@@ -31,7 +31,13 @@ PARAM_PREFIX = "param_"
 STATUS_COLUMNS: tuple[str, ...] = ("status", "failure")
 #: Timing [s or ms], measured by the harness; `jit_s` is warm-up, kept apart from step times.
 TIMING_COLUMNS: tuple[str, ...] = ("setup_s", "train_s", "jit_s", "step_ms_median", "step_ms_p95", "speedup")
-METRIC_COLUMNS: tuple[str, ...] = STATUS_COLUMNS + METRIC_KEYS + TIMING_COLUMNS
+#: Ground truth and frontier (analysis/truth.py, bench/runner.py `collect_rows`): the run's integrator, its error
+#: against the scenario's truth, its cost, its speedup at equal accuracy (or why none), then the truth's own figures
+#: (the same on every row of a scenario) and, on ladder rows, the ladder's integrator.
+TRUTH_COLUMNS: tuple[str, ...] = (
+    "integrator", "err_truth", "wall_s_per_sim_s", "speedup_equal_accuracy", "frontier_note", "truth_certified",
+    "truth_err_est", "truth_order", "truth_dt", "truth_depth", "truth_integrator", "ladder")
+METRIC_COLUMNS: tuple[str, ...] = STATUS_COLUMNS + METRIC_KEYS + TIMING_COLUMNS + TRUTH_COLUMNS
 
 #: Distribution name -> column of its version in `provenance()`.
 VERSIONED_PACKAGES: dict[str, str] = {

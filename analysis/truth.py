@@ -163,7 +163,8 @@ def _number(value: object) -> float | None:
 def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
     """Rows with `speedup_equal_accuracy` and `frontier_note` on every row that has err_truth and
     wall_s_per_sim_s: against the Pareto front of its scenario's ladder rows (rows with a non-empty `ladder`,
-    every integrator pooled: the cheapest full-space run at each accuracy), `speedup_equal_accuracy`. Rows of
+    every integrator pooled: the cheapest full-space run at each accuracy), `speedup_equal_accuracy` (the truth's
+    own run, err_truth 0, gets the note `the truth`). Rows of
     scenarios without ladder rows, and rows without the two figures, are returned unchanged."""
     fronts: dict[object, list[tuple[float, float]]] = {}
     for r in rows:
@@ -176,7 +177,7 @@ def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
     for r in rows:
         e, c = _number(r.get("err_truth")), _number(r.get("wall_s_per_sim_s"))
         if r.get("scenario") in fronts and e is not None and c is not None and r.get("status") == "ok":
-            speedup, note = speedup_equal_accuracy(fronts[r["scenario"]], e, c)
+            speedup, note = speedup_equal_accuracy(fronts[r["scenario"]], e, c) if e > 0.0 else (None, "the truth")
             r = dict(r) | {"speedup_equal_accuracy": speedup, "frontier_note": note}
         out.append(dict(r))
     return out

@@ -134,7 +134,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             return 2
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
                     jobs=args.jobs, executor=args.executor, report=not args.no_report and not with_baseline,
-                    only=args.only, allow_large=args.allow_large)
+                    only=args.only, allow_large=args.allow_large, with_truth=not args.no_truth,
+                    truth_overrides={"tol": args.truth_tol, "depth": args.truth_depth,
+                                     "integrator": args.truth_integrator})
     print(f"results: {csv}")
     if with_baseline:
         return cmd_report(argparse.Namespace(dir=args.out, baseline=args.baseline, tol=args.tol))
@@ -213,14 +215,19 @@ def cmd_gate(args: argparse.Namespace) -> int:
     suite = load_suite(load_run_info(args.dir)["suite"]).name  # gates name suites; a run may name a suite file
     verdicts = check(pd.read_csv(Path(args.dir) / "results.csv"), load_gates(args.gates), suite)
     binding = [v for v in verdicts if not v.advisory]
-    failed = [v for v in binding if not v.passed]
+    failed = [v for v in binding if v.failed]
+    undecidable = [v for v in binding if v.status == "undecidable"]
     for v in failed:
         print(f"FAIL {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit})")
+    for v in undecidable:
+        print(f"UNDECIDABLE {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit}; the "
+              "scenario's truth is uncertified and its error estimate too large to judge this limit)")
     advisory = [v for v in verdicts if v.advisory]
     if advisory:
         print(f"advisory checks (reported, not enforced): {sum(v.passed for v in advisory)} of {len(advisory)} met; "
               "see the report's stability section")
-    print(f"gate verdicts: {len(binding) - len(failed)} of {len(binding)} met")
+    print(f"gate verdicts: {sum(v.passed for v in binding)} of {len(binding)} met"
+          + (f", {len(undecidable)} undecidable (not failures)" if undecidable else ""))
     return 1 if failed or not binding else 0
 
 
@@ -277,6 +284,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
     s.add_argument("--no-report", action="store_true")
+    s.add_argument("--no-truth", action="store_true", help="skip the ground truth (the suite's [truth] ladder)")
+    s.add_argument("--truth-tol", type=float, help="the truth ladder's tolerance: stop when two successive runs "
+                   "differ by at most this fraction of L (default: the suite's [truth], else 0.005)")
+    s.add_argument("--truth-depth", type=int, help="the truth ladder's most halvings of dt (default: the suite's)")
+    s.add_argument("--truth-integrator", help="the truth ladder's time integrator (default: the suite's, else bdf2)")
     _add_baseline_args(s)
     _add_allow_large_arg(s)
     s.set_defaults(func=cmd_run)

@@ -12,8 +12,8 @@ its tolerance:
   step times on shared machines move by tens of per cent from run to run.
 
 Also regressions: a binding gate of `gates.toml` that the baseline row met and the new row fails (whatever the
-tolerance), a run that succeeded in the baseline and failed in the new set, a row or a value the baseline has
-and the new set lacks. The same tests in the good direction give **improved**; rows only in the new set are
+tolerance; an undecidable verdict, `bench.gates`, is no failure and says so in the reason), a run that succeeded
+in the baseline and failed in the new set, a row or a value the baseline has and the new set lacks. The same tests in the good direction give **improved**; rows only in the new set are
 **new**. Tolerances are configurable per metric or per kind (`with_tolerances`, `frictionbench compare --tol`).
 
 Everything here is a pure function of DataFrames (results.csv as read by pandas) and gate dicts.
@@ -74,7 +74,8 @@ TIMING_FACTOR = 1.5
 DEFAULT_RULES: tuple[Rule, ...] = (
     *(Rule(m, "accuracy", "lower", **ACCURACY_TOL)
       for m in ("pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "proj_rmse_rel",
-                "remesh_ratio", "ref_dt_change")),
+                "remesh_ratio", "ref_dt_change", "err_truth", "truth_err_est")),
+    Rule("truth_certified", "accuracy", "true"),
     Rule("status", "stability", "true"),
     Rule("finite", "stability", "true"),
     Rule("stick_agree", "stability", "true"),
@@ -90,6 +91,8 @@ DEFAULT_RULES: tuple[Rule, ...] = (
     Rule("step_ms_median", "timing", "lower", factor=TIMING_FACTOR),
     Rule("step_ms_p95", "timing", "lower", factor=TIMING_FACTOR),
     Rule("speedup", "timing", "higher", factor=TIMING_FACTOR),
+    Rule("wall_s_per_sim_s", "timing", "lower", factor=TIMING_FACTOR),
+    Rule("speedup_equal_accuracy", "timing", "higher", factor=TIMING_FACTOR),
 )
 
 _TOL_RE = re.compile(r"(?:(?P<better>[a-z]+):)?(?:x(?P<factor>[^,%]+)|(?P<rel>[^,%]+)%(?:,(?P<abs>[^,%]+))?"
@@ -281,11 +284,15 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
                 continue
             verdict, reason = _judge(rule, vb, vn)
             gate_b, gate_n = gated_b.get((scenario, label, metric), []), gated_n.get((scenario, label, metric), [])
-            crossed = [v for v in gate_n if not v.advisory and not v.passed
+            crossed = [v for v in gate_n if not v.advisory and v.failed
                        and all(w.passed for w in gate_b if w.gate == v.gate)]
             if crossed and gate_b:
                 verdict, reason = "regression", "; ".join(filter(None, [reason, *(f"gate {v.limit} now fails"
                                                                                   for v in crossed)]))
+            undecided = [v for v in gate_n if v.status == "undecidable"]  # neither passed nor failed: no regression
+            if undecided:
+                reason = "; ".join(filter(None, [reason, *(f"gate {v.limit} undecidable (uncertified truth)"
+                                                           for v in undecided)]))
             gate = "; ".join(dict.fromkeys(f"{v.limit}{' (advisory)' if v.advisory else ''}" for v in gate_n))
             nb, nn = _number(vb), _number(vn)
             rows.append(_row(verdict, scenario, label, metric, rule.kind, vb, vn,

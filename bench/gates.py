@@ -12,8 +12,13 @@ name another file. Format:
     metric = "pos_rmse_rel"
     max = 0.05                 # and/or `min = ...`; boolean metrics use `equals = true`
     advisory = true            # optional: judged and shown in the report, but never fails `frictionbench gate`
+    against_truth = true       # optional: the metric is an error against the ground truth (implied for err_truth)
 
 Each gate yields one verdict per matching row; a gate that matches no row fails (a missing run is a failure).
+A verdict is `passed`, `failed` or `undecidable`: a `max` gate on an error against the truth (`err_truth`, or a
+gate marked `against_truth`) whose limit is below 3x the error estimate of the row's truth, where that truth is
+uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
+`frictionbench gate`.
 """
 
 from __future__ import annotations
@@ -26,11 +31,17 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.table import variant_labels
+from analysis.truth import decidable
+
+#: Metrics that are errors against the ground truth: their `max` gates can be undecidable.
+TRUTH_METRICS: tuple[str, ...] = ("err_truth",)
+STATUSES: tuple[str, ...] = ("passed", "failed", "undecidable")
 
 
 @dataclass(frozen=True)
 class Verdict:
-    """One gate checked on one results row."""
+    """One gate checked on one results row: `status` one of STATUSES, `passed` true only when it passed (an
+    undecidable verdict has passed = False and is no failure either)."""
 
     gate: str
     scenario: str
@@ -40,6 +51,12 @@ class Verdict:
     limit: str
     passed: bool
     advisory: bool = False
+    status: str = "failed"
+
+    @property
+    def failed(self) -> bool:
+        """Whether the verdict is a failure (not passed, not undecidable)."""
+        return self.status == "failed"
 
 
 #: Name of the shipped gates file inside the `bench` package.
@@ -62,6 +79,24 @@ def _passes(value: object, gate: dict) -> bool:
         return str(value).lower() == str(gate["equals"]).lower()
     v = float(value)
     return ("max" not in gate or v <= gate["max"]) and ("min" not in gate or v >= gate["min"])
+
+
+def _flag(value: object) -> bool:
+    """A results cell as a bool (`True`/`true`/1 are true; missing is false)."""
+    if value is None or (isinstance(value, float) and pd.isna(value)):
+        return False
+    return str(value).strip().lower() in ("true", "1", "1.0", "yes")
+
+
+def _undecidable(row: pd.Series, gate: dict) -> bool:
+    """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
+    estimate is too large for the limit (`analysis.truth.decidable`)."""
+    if "max" not in gate or not (gate["metric"] in TRUTH_METRICS or gate.get("against_truth")):
+        return False
+    if "truth_err_est" not in row and "truth_certified" not in row:
+        return False  # no truth for these results: judged as before
+    est = pd.to_numeric(pd.Series([row.get("truth_err_est")]), errors="coerce").iloc[0]
+    return not decidable(float(gate["max"]), _flag(row.get("truth_certified")), None if pd.isna(est) else float(est))
 
 
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:
@@ -90,6 +125,7 @@ def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]
             verdicts.append(Verdict(name, "(none)", str(wanted), gate["metric"], None, limit, False, advisory))
         for _, row in rows.iterrows():
             value = row.get(gate["metric"])
+            status = ("undecidable" if _undecidable(row, gate) else "passed" if _passes(value, gate) else "failed")
             verdicts.append(Verdict(name, row["scenario"], labels[row.name], gate["metric"], value, limit,
-                                    _passes(value, gate), advisory))
+                                    status == "passed", advisory, status))
     return verdicts

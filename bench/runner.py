@@ -18,15 +18,19 @@ from pathlib import Path
 from tqdm import tqdm
 
 from analysis.derived import with_remesh_ratio
-from analysis.metrics import compare
+from analysis.metrics import compare, pos_rmse_rel
 from analysis.table import write_results_csv
 from analysis.transfer import transfer_to_mesh
+from analysis.truth import TruthEstimate, assess_ladder, ladder_continues, wall_s_per_sim_s, with_frontier
 from bench.executors import make_executor
 from bench.store import RunStore, run_key
 from scenarios.atomic import write_json_atomic
 from scenarios.model import MeshSpec, Scenario
-from scenarios.suites import SuiteMember, load_suite
+from scenarios.suites import SuiteMember, TruthSpec, load_suite
 from solvers.registry import entries, register_entries
+
+#: The time integrator of a scenario that names none (before `time.integrator` existed: backward Euler).
+DEFAULT_INTEGRATOR = "backward-euler"
 
 #: The solver whose runs are the references of the matrix (every other run is compared with its run of the same
 #: scenario); its default parameters are the reference's.
@@ -127,22 +131,27 @@ def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
 
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
               executor: str = "process", report: bool = True, only: str | None = None,
-              allow_large: bool = False, reference: str = REFERENCE) -> Path:
+              allow_large: bool = False, reference: str = REFERENCE, with_truth: bool = True,
+              truth_overrides: dict | None = None) -> Path:
     """Run the matrix of `suite_name` with `variants` into `out` (only the members matching the shell pattern
     `only`, if given), every run compared with the `reference` solver's; returns the results.csv path. Every run
     is checked by the resource guard first (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts
-    its bounds)."""
+    its bounds). With `with_truth`, the suite's `[truth]` (changed by `truth_overrides`: tol, depth, integrator,
+    named `--truth-*` in errors; a suite without one gets the defaults when overrides are given) builds a ground
+    truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns."""
     from bench.training import prepare_variants
 
     out = Path(out)
     store = RunStore(out / "runs")
     suite = load_suite(suite_name).only(only)
-    guard_resources(suite, variants, allow_large=allow_large or suite.allow_large)
+    spec = truth_config(suite, with_truth, truth_overrides)
+    guard_resources(suite, variants, allow_large=allow_large or suite.allow_large, truth=spec)
     t0 = time.perf_counter()
     refs = {m.scenario.name: Task(m.scenario, reference, {}) for m in suite.scenarios}
     remesh_refs = [Task(m.scenario, reference, {}, mesh_variant(m, v.remesh))
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
     run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
+    ladders = run_ladders(suite, spec, store, device, jobs, executor, reference) if spec else {}
     resolved = prepare_variants(suite, variants, store, refs, out / "models", device)
     tasks = []
     for m in suite.scenarios:
@@ -153,11 +162,12 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
             if isinstance(task, Task):
                 tasks.append(task)
     run_tasks(tasks, store, device, jobs, executor, "solver variants")
-    rows = collect_rows(suite, refs, resolved, variants, store)
+    rows = collect_rows(suite, refs, resolved, variants, store, ladders, spec)
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
-                                         "reference": reference, "wall_s": time.perf_counter() - t0})
+                                         "reference": reference, "truth": spec.__dict__ if spec else None,
+                                         "wall_s": time.perf_counter() - t0})
     if report:
         from bench.reporting import build_report  # here, not above: the worker processes need no plotting
 
@@ -165,15 +175,34 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     return csv
 
 
-def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = False) -> None:
+def truth_config(suite, with_truth: bool = True, overrides: dict | None = None) -> TruthSpec | None:
+    """The truth a run builds: None without `with_truth`; else the suite's `[truth]` changed by `overrides`
+    (tol, depth, integrator; errors name `--truth-<key>`), the defaults where the suite has none and overrides
+    are given, None where it has none and none are given. The ladder's integrator must be one the scenarios
+    accept (checked on the first member, before any work)."""
+    overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
+    if not with_truth or (suite.truth is None and not overrides):
+        return None
+    spec = (suite.truth or TruthSpec()).with_(**overrides, where="--truth", sep="-") if overrides else suite.truth
+    for integrator in (spec.integrator, *spec.ladders):
+        ladder_variant(suite.scenarios[0].scenario, integrator, spec.depth).scenario(suite.scenarios[0].scenario)
+    return spec
+
+
+def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = False,
+                    truth: TruthSpec | None = None) -> None:
     """Refuse the whole matrix before any work when one of its runs (a reference, a remeshed reference, a variant
-    with its own time step) exceeds the bounds of `scenarios.resources.check_resources`."""
+    with its own time step, the deepest run a truth ladder may need) exceeds the bounds of
+    `scenarios.resources.check_resources`."""
     from scenarios.errors import ScenarioError
     from scenarios.resources import check_runs
 
     runs = []
     for m in suite.scenarios:
         runs.append((m.scenario, m.scenario.mesh))
+        if truth is not None:
+            runs.append((ladder_variant(m.scenario, truth.integrator, truth.depth).scenario(m.scenario),
+                         m.scenario.mesh))
         for v in variants:
             try:
                 sc = v.scenario(m.scenario)
@@ -181,6 +210,100 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
                 continue
             runs.append((sc, mesh_variant(m, v.remesh) if v.remesh else sc.mesh))
     check_runs(runs, allow_large=allow_large)
+
+
+def integrator_of(sc: Scenario) -> str:
+    """The scenario's time integrator (`time.integrator`; backward Euler where the field does not exist)."""
+    return getattr(sc.time, "integrator", DEFAULT_INTEGRATOR)
+
+
+def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENCE) -> Variant:
+    """Level k of a truth ladder: the full-space solver at dt / 2^k with `integrator`, a frame every
+    frame_every x 2^k steps (the frames of every level fall on the same times)."""
+    overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k else {}
+    if integrator != integrator_of(sc):
+        overrides["time.integrator"] = integrator
+    return Variant(solver, {}, label=f"ladder-{integrator}-{k}", overrides=overrides, dt_scale=0.5 ** k)
+
+
+@dataclass
+class Ladder:
+    """The runs of one member's ladder with one integrator, level by level: their tasks, the differences
+    d_k = pos_rmse_rel(x_{k-1}, x_k) [fraction of L] between successive levels, and whether a run failed (which
+    ends it: the truth is then the last good level)."""
+
+    member: SuiteMember
+    integrator: str
+    solver: str = REFERENCE
+    tasks: list[Task] = field(default_factory=list)
+    differences: list[float] = field(default_factory=list)
+    failed: bool = False
+
+    def task(self, k: int) -> Task:
+        """The task of level k."""
+        sc = self.member.scenario
+        return Task(ladder_variant(sc, self.integrator, k, self.solver).scenario(sc), self.solver, {})
+
+    def add(self, task: Task, store: RunStore, previous: object) -> object:
+        """Record the finished run of the next level; returns its trajectory (None if it failed)."""
+        traj, stats = store.load(task.key)
+        if traj is None or stats.get("failed"):
+            self.failed = True
+            return None
+        self.tasks.append(task)
+        if previous is not None:
+            self.differences.append(pos_rmse_rel(previous, traj))
+        return traj
+
+    @property
+    def good_levels(self) -> int:
+        """How many levels ran without failing."""
+        return len(self.tasks)
+
+
+def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int, executor: str,
+                reference: str = REFERENCE) -> dict[str, dict[str, Ladder]]:
+    """Every member's truth ladder (`spec.integrator`) climbed level by level, all members of a level at once,
+    until `ladder_continues` says stop; then the ladders of `spec.ladders` to the same level as the member's truth.
+    Every run is an ordinary run of the store (cached, resumable). Returns scenario -> integrator -> Ladder (the
+    truth's integrator first)."""
+    ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference)} for m in suite.scenarios}
+    climbing = [by[spec.integrator] for by in ladders.values()]
+    last: dict[int, object] = {}
+    k = 0
+    while climbing:
+        tasks = [ladder.task(k) for ladder in climbing]
+        run_tasks(tasks, store, device, jobs, executor, f"truth ladder, dt/{2 ** k}")
+        for ladder, task in zip(climbing, tasks):
+            last[id(ladder)] = ladder.add(task, store, last.get(id(ladder)))
+        climbing = [ladder for ladder in climbing
+                    if not ladder.failed and ladder_continues(ladder.differences, spec.tol, spec.depth)]
+        k += 1
+    others = []
+    for by in ladders.values():
+        truth = by[spec.integrator]
+        for integrator in spec.ladders:
+            by[integrator] = Ladder(truth.member, integrator, reference)
+            others += [(by[integrator], by[integrator].task(k)) for k in range(truth.good_levels)]
+    run_tasks([t for _, t in others], store, device, jobs, executor, "frontier ladders")
+    previous: dict[int, object] = {}
+    for ladder, task in others:
+        if not ladder.failed:
+            previous[id(ladder)] = ladder.add(task, store, previous.get(id(ladder)))
+    return ladders
+
+
+def truth_columns(ladders: dict[str, Ladder], spec_tol: float) -> tuple[dict, TruthEstimate | None, Task | None]:
+    """(the truth columns of every row of a scenario, its estimate, the truth's task) from its ladders (the
+    truth's first); no truth where its ladder's first run failed."""
+    truth = next(iter(ladders.values()))
+    if not truth.tasks:
+        return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
+    est = assess_ladder(truth.differences, spec_tol, truth.integrator)
+    finest = truth.tasks[-1]
+    return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
+             "truth_order": est.order, "truth_dt": finest.scenario.time.dt, "truth_depth": est.level,
+             "truth_integrator": truth.integrator}, est, finest)
 
 
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:
@@ -207,8 +330,11 @@ def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) 
     return out
 
 
-def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Variant], store: RunStore) -> list[dict]:
-    """One results row per (member, variant) plus one per reference: identity, metrics, timings."""
+def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Variant], store: RunStore,
+                 ladders: dict[str, dict[str, Ladder]] | None = None, truth: TruthSpec | None = None) -> list[dict]:
+    """One results row per (member, variant) plus one per reference and one per ladder run: identity, metrics,
+    timings; with ladders, every row also gets err_truth (against its scenario's truth; remeshed runs carried onto
+    the truth's mesh first), the truth's columns (`truth_columns`) and the frontier's (`with_frontier`)."""
     rows = []
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
@@ -216,8 +342,28 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
         ref, ref_stats = store.load(ref_task.key)
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
-        rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt}
-                    | _timing(ref_stats, ref_stats) | _metrics(ref, ref, sc, ref_stats))
+        truth_traj = None
+        if ladders and sc.name in ladders:
+            columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0)
+            base |= columns
+            truth_traj = store.load(truth_task.key)[0] if truth_task else None
+
+        def err_truth(traj, other_mesh: bool = False) -> dict:
+            if truth_traj is None or traj is None:
+                return {}
+            return {"err_truth": pos_rmse_rel(truth_traj, transfer_to_mesh(traj, truth_traj) if other_mesh else traj)}
+
+        rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,
+                            "integrator": integrator_of(sc)}
+                    | _timing(ref_stats, ref_stats, sc.time.dt) | _metrics(ref, ref, sc, ref_stats)
+                    | (err_truth(ref) if not ref_stats.get("failed") else {}))
+        for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
+            for k, task in enumerate(ladder.tasks):
+                traj, stats = store.load(task.key)
+                rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
+                                    "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
+                            | _timing(stats, ref_stats, task.scenario.time.dt) | _metrics(ref, traj, sc, stats)
+                            | err_truth(traj))
         for v, params in member_variants(resolved, variants, m):
             label = v.label or v.solver
             if params is None:
@@ -240,10 +386,12 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                 v_ref, v_ref_stats = store.load(Task(sc, ref_task.solver, {}, mesh).key)
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
-                          "dt": task.scenario.time.dt,
+                          "dt": task.scenario.time.dt, "integrator": integrator_of(task.scenario),
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
-            rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, task.scenario, stats))
-    return with_ref_dt_change(with_remesh_ratio(rows))
+            metrics = _metrics(v_ref, traj, task.scenario, stats)
+            truth_err = err_truth(traj, mesh is not None and not v.transfer) if metrics["status"] == "ok" else {}
+            rows.append(row | _timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
+    return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
 
 
 def with_ref_dt_change(rows: list[dict]) -> list[dict]:
@@ -256,18 +404,20 @@ def with_ref_dt_change(rows: list[dict]) -> list[dict]:
     refs = {r["scenario"]: r for r in rows if r.get("variant") == "reference"}
     ref_dt = {name: r.get("dt") or 0.0 for name, r in refs.items()}
     finer = [r for r in rows if r["scenario"] in refs and r.get("solver") == refs[r["scenario"]].get("solver")
-             and not r.get("remesh") and r.get("status") == "ok"
+             and not r.get("remesh") and not r.get("ladder") and r.get("status") == "ok"
              and r.get("dt") is not None and r["dt"] < ref_dt.get(r["scenario"], 0.0)]
     change = {r["scenario"]: r.get("pos_rmse_rel") for r in sorted(finer, key=lambda r: -r["dt"])}  # finest last
     return [r | {"ref_dt_change": change[r["scenario"]]} if r["scenario"] in change else r for r in rows]
 
 
-def _timing(stats: dict, ref_stats: dict) -> dict:
+def _timing(stats: dict, ref_stats: dict, dt: float) -> dict:
     """Timing and solver-health columns (Newton failures, line-search stalls, step retries); speedup = the
-    reference's step time / this step time, both measured in this run."""
+    reference's step time / this step time, both measured in this run; wall_s_per_sim_s = the steps' wall time
+    per simulated second at time step dt [s] (warm-up, setup and training apart)."""
     keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
             "newton_iters_max", "not_converged", "line_search_stalls", "step_retries")
     row = {k: stats.get(k) for k in keys}
+    row["wall_s_per_sim_s"] = wall_s_per_sim_s([s["wall_s"] for s in stats.get("per_step", [])], dt)
     if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
         row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
     return row

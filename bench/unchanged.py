@@ -116,8 +116,8 @@ def compare_verdicts(old: pd.DataFrame, new: pd.DataFrame, suite: str, gates: li
     timing columns (`IGNORED_COLUMNS`) are not judged: their verdicts depend on the machine's load."""
     gates = [g for g in gates if g.get("metric") not in IGNORED_COLUMNS]
 
-    def verdicts(frame: pd.DataFrame) -> dict[tuple, bool]:
-        return {(v.gate, v.scenario, v.variant, v.metric): v.passed for v in check(frame, gates, suite)}
+    def verdicts(frame: pd.DataFrame) -> dict[tuple, str]:
+        return {(v.gate, v.scenario, v.variant, v.metric): v.status for v in check(frame, gates, suite)}
 
     a, b = verdicts(old), verdicts(new)
     return [Difference(f"gate {k[0]} on {k[1]} [{k[2]}]", k[3], a.get(k), b.get(k))

@@ -25,6 +25,14 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     [split]                         # optional: product members whose labels match any rule (all of its
     test = [{ plane = "p1" }]       # axis = label pairs) are test members, all others train
 
+    [truth]                         # optional: a ground truth per member (bench/runner.py `build_truths`)
+    tol = 0.005                     # stop when two successive runs differ by at most this (pos_rmse_rel,
+                                    # fraction of L; in [1e-6, 0.5]); default 0.005
+    depth = 4                       # at most this many halvings of dt (integer in [1, 12]); default 4
+    integrator = "bdf2"             # the ladder's time integrator; default "bdf2"
+    ladders = ["backward-euler"]    # optional: integrators whose ladders also run (to the truth's level) as
+                                    # cost-accuracy curves of the frontier
+
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }
     across = ["mesh"]               # optional: one member per value of these axes, whose overrides apply first
@@ -60,7 +68,12 @@ from scenarios.model import Scenario
 Split = Literal["train", "test"]
 SPLITS: tuple[Split, ...] = ("train", "test")
 SUITES_DIR = Path(__file__).parent / "suites"
-SUITE_KEYS = ("suite", "base", "axis", "split", "extra")
+SUITE_KEYS = ("suite", "base", "axis", "split", "extra", "truth")
+#: Time integrators a truth ladder may use.
+TRUTH_INTEGRATORS = ("backward-euler", "bdf2")
+#: Bounds of a truth ladder's tolerance [fraction of L] and depth [halvings].
+TRUTH_TOL_RANGE = (1e-6, 0.5)
+TRUTH_DEPTH_RANGE = (1, 12)
 
 _LABEL_RE = re.compile(NAME_PART)
 
@@ -75,6 +88,26 @@ class SuiteMember:
 
 
 @dataclass(frozen=True)
+class TruthSpec:
+    """How a suite's ground truths are made (`[truth]` table): the ladder's tolerance `tol` [fraction of L], its
+    `depth` (most halvings of dt), its `integrator`, and the integrators of further `ladders` run for the frontier
+    only."""
+
+    tol: float = 0.005
+    depth: int = 4
+    integrator: str = "bdf2"
+    ladders: tuple[str, ...] = ()
+
+    def with_(self, tol: float | None = None, depth: int | None = None, integrator: str | None = None,
+              where: str = "truth", sep: str = ".") -> "TruthSpec":
+        """A validated copy with the given fields changed (None keeps a field); errors name `<where><sep><key>`
+        (e.g. `--truth-depth` for command-line flags)."""
+        d = {"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders)}
+        d |= {k: v for k, v in (("tol", tol), ("depth", depth), ("integrator", integrator)) if v is not None}
+        return truth_spec(d, where, sep)
+
+
+@dataclass(frozen=True)
 class Suite:
     """A named, validated list of scenarios with a train/test split."""
 
@@ -82,6 +115,7 @@ class Suite:
     description: str
     scenarios: tuple[SuiteMember, ...]
     allow_large: bool = False
+    truth: TruthSpec | None = None
 
     def only(self, pattern: str | None) -> "Suite":
         """The members whose names match a shell pattern (`fnmatch`, e.g. `paper/cheese_*`); None keeps all.
@@ -148,13 +182,37 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
     """
     try:
         name, description, allow_large, drafts = _expand(d)
+        truth = truth_spec(d["truth"]) if "truth" in d else None
     except ScenarioError as err:
         raise type(err)(err.field, err.value, f"{err.reason} [{source}]") from None
     members = tuple(
         SuiteMember(scenario_from_dict(draft.scenario, source=f"{source}, member {draft.name}", base_dir=base_dir),
                     draft.split, draft.labels)
         for draft in drafts)
-    return Suite(name=name, description=description, scenarios=members, allow_large=allow_large)
+    return Suite(name=name, description=description, scenarios=members, allow_large=allow_large, truth=truth)
+
+
+def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
+    """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
+    t = _table(raw, where, ("tol", "depth", "integrator", "ladders"))
+    d = TruthSpec()
+    tol = t.get("tol", d.tol)
+    lo, hi = TRUTH_TOL_RANGE
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not lo <= tol <= hi:
+        raise ScenarioError(f"{where}{sep}tol", tol, f"expected a number in [{lo:g}, {hi:g}] (a fraction of L)")
+    depth = t.get("depth", d.depth)
+    lo_d, hi_d = TRUTH_DEPTH_RANGE
+    if isinstance(depth, bool) or not isinstance(depth, int) or not lo_d <= depth <= hi_d:
+        raise ScenarioError(f"{where}{sep}depth", depth, f"expected an integer in [{lo_d}, {hi_d}] (halvings of dt)")
+    integrator = t.get("integrator", d.integrator)
+    if integrator not in TRUTH_INTEGRATORS:
+        raise ScenarioError(f"{where}{sep}integrator", integrator, f"expected one of {list(TRUTH_INTEGRATORS)}")
+    ladders = _array(t.get("ladders", []), f"{where}{sep}ladders")
+    for i, name in enumerate(ladders):
+        if name not in TRUTH_INTEGRATORS:
+            raise ScenarioError(f"{where}{sep}ladders[{i}]", name, f"expected one of {list(TRUTH_INTEGRATORS)}")
+    return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
+                     ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)))
 
 
 def _expand(d: object) -> tuple[str, str, bool, list[_Draft]]:

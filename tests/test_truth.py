@@ -91,9 +91,11 @@ def test_with_frontier_gives_every_row_of_a_scenario_its_speedup_against_its_own
     rows += [{"scenario": "a", "status": "ok", "ladder": "", "err_truth": 0.05, "wall_s_per_sim_s": 2.0},
              {"scenario": "a", "status": "ok", "ladder": "", "err_truth": 1e-4, "wall_s_per_sim_s": 2.0},
              {"scenario": "a", "status": "failed", "ladder": ""},
+             {"scenario": "a", "status": "ok", "ladder": "bdf2", "err_truth": 0.0, "wall_s_per_sim_s": 160.0},
              {"scenario": "b", "status": "ok", "ladder": "", "err_truth": 0.05, "wall_s_per_sim_s": 2.0}]
     out = with_frontier(rows)
     assert [r["speedup_equal_accuracy"] for r in out[:4]] == pytest.approx([1.0] * 4)  # the ladder lies on itself
     assert out[4]["speedup_equal_accuracy"] == pytest.approx(10.0)
     assert out[5]["speedup_equal_accuracy"] is None and out[5]["frontier_note"] == "more accurate than the ladder"
-    assert "speedup_equal_accuracy" not in out[6] and "speedup_equal_accuracy" not in out[7]  # failed; no ladder
+    assert out[7]["speedup_equal_accuracy"] is None and out[7]["frontier_note"] == "the truth"
+    assert "speedup_equal_accuracy" not in out[6] and "speedup_equal_accuracy" not in out[8]  # failed; no ladder
