@@ -1,0 +1,164 @@
+"""The ground truth in the matrix: the suite's [truth] table, the ladder's runs and rows, err_truth and the frontier
+columns, and undecidable gate verdicts (in `gate` and `compare`)."""
+
+from __future__ import annotations
+
+import io
+import json
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.metrics import pos_rmse_rel
+from analysis.truth import richardson
+from bench.cli import main
+from bench.compare import compare_results
+from bench.gates import check
+from bench.runner import run_suite
+from bench.store import RunStore
+from scenarios.errors import ScenarioError
+from scenarios.suites import load_suite, suite_from_dict
+
+SUITE = """
+[suite]
+name = "ladder"
+description = "one short block drop"
+
+[base.mesh]
+name = "block"
+resolution = "coarse"
+
+[base.initial]
+clearance = 0.005
+
+[base.time]
+dt = 0.01
+duration = 0.04
+
+[[axis]]
+name = "mu"
+field = "plane.friction"
+values = [0.3]
+
+[truth]
+tol = 1e-6
+depth = 2
+integrator = "backward-euler"
+"""
+
+
+def _suite_dict(**truth) -> dict:
+    return {"suite": {"name": "s"}, "base": {"mesh": {"name": "block", "resolution": "coarse"}},
+            "axis": [{"name": "mu", "field": "plane.friction", "values": [0.3]}], "truth": truth}
+
+
+def test_the_truth_table_has_defaults_and_validated_fields():
+    spec = suite_from_dict(_suite_dict()).truth
+    assert (spec.tol, spec.depth, spec.integrator, spec.ladders) == (0.005, 4, "bdf2", ())
+    assert suite_from_dict({k: v for k, v in _suite_dict().items() if k != "truth"}).truth is None
+    spec = suite_from_dict(_suite_dict(tol=0.01, depth=3, integrator="backward-euler",
+                                       ladders=["bdf2", "backward-euler"])).truth
+    assert (spec.tol, spec.depth, spec.integrator, spec.ladders) == (0.01, 3, "backward-euler", ("bdf2",))
+
+
+@pytest.mark.parametrize(("truth", "field", "value"), [
+    ({"depth": 0}, "truth.depth", "0"), ({"depth": 13}, "truth.depth", "13"), ({"depth": 2.5}, "truth.depth", "2.5"),
+    ({"depth": True}, "truth.depth", "True"), ({"tol": 0.0}, "truth.tol", "0.0"), ({"tol": 0.9}, "truth.tol", "0.9"),
+    ({"tol": "small"}, "truth.tol", "small"), ({"integrator": "rk4"}, "truth.integrator", "rk4"),
+    ({"ladders": ["euler"]}, "truth.ladders[0]", "euler"), ({"depht": 3}, "depht", "3")])
+def test_a_bad_truth_table_is_refused_naming_the_field_and_value(truth, field, value):
+    with pytest.raises(ScenarioError) as err:
+        suite_from_dict(_suite_dict(**truth))
+    assert field in str(err.value) and value in str(err.value)
+
+
+def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):
+    suite = tmp_path / "ladder.toml"
+    suite.write_text(SUITE)
+    out = tmp_path / "out"
+    assert main(["run", "--suite", str(suite), "--solvers", "full", "--truth-depth", "40", "--out", str(out)]) == 2
+    assert "--truth-depth = 40" in capsys.readouterr().err
+    assert not (out / "runs").exists()
+
+
+def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp_path: Path):
+    suite = tmp_path / "ladder.toml"
+    suite.write_text(SUITE)
+    out = tmp_path / "out"
+    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False))
+    store = RunStore(out / "runs")
+    ladder = rows[rows["ladder"] == "backward-euler"].sort_values("dt", ascending=False)
+    assert list(ladder["variant"]) == [f"ladder-backward-euler-{k}" for k in range(3)]
+    assert ladder["dt"].tolist() == pytest.approx([0.01, 0.005, 0.0025])
+    ref = rows[rows["variant"] == "reference"].iloc[0]
+    assert ladder.iloc[0]["run"] == ref["run"]  # level 0 with the reference's integrator is the reference run
+    trajs = [store.load(key)[0] for key in ladder["run"]]
+    assert all(t.n_frames == 5 and (abs(t.t - trajs[0].t) < 1e-12).all() for t in trajs)  # frames line up
+    d = [pos_rmse_rel(trajs[0], trajs[1]), pos_rmse_rel(trajs[1], trajs[2])]
+    est, p, _ = richardson(d, "backward-euler")
+    assert not ref["truth_certified"] and ref["truth_depth"] == 2 and ref["truth_dt"] == pytest.approx(0.0025)
+    assert ref["truth_err_est"] == pytest.approx(est) and ref["truth_order"] == pytest.approx(p)
+    assert ref["err_truth"] == pytest.approx(pos_rmse_rel(trajs[2], trajs[0]))
+    assert ladder.iloc[2]["err_truth"] == 0.0 and ladder.iloc[2]["frontier_note"] == "the truth"
+    stats = store.load(ref["run"])[1]
+    assert ref["wall_s_per_sim_s"] == pytest.approx(sum(s["wall_s"] for s in stats["per_step"]) / 0.04)
+    assert ref["speedup_equal_accuracy"] == pytest.approx(1.0)  # the reference lies on its own ladder
+    assert (rows["integrator"] == "backward-euler").all()
+    # a looser tolerance certifies at the first halving, from the stored runs (nothing is recomputed)
+    stamps = {key: (store.folder(key) / "stats.json").stat().st_mtime_ns for key in ladder["run"]}
+    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False, truth_overrides={"tol": 0.5}))
+    ref = rows[rows["variant"] == "reference"].iloc[0]
+    assert ref["truth_certified"] and ref["truth_depth"] == 1 and ref["truth_err_est"] == pytest.approx(d[0])
+    assert all((store.folder(k) / "stats.json").stat().st_mtime_ns == t for k, t in stamps.items())
+    assert json.loads((out / "run.json").read_text())["truth"]["tol"] == 0.5
+    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False, with_truth=False))
+    assert "err_truth" not in rows and "ladder" not in rows
+
+
+def _truth_rows(certified: bool, est: float) -> pd.DataFrame:
+    return pd.DataFrame([{"suite": "quick", "scenario": "quick/a", "solver": "licrom", "variant": "m", "split": "train",
+                          "status": "ok", "err_truth": 0.012, "pos_rmse_rel": 0.004, "truth_certified": certified,
+                          "truth_err_est": est}])
+
+
+GATES = [{"suite": "quick", "variant": "licrom/m", "metric": "err_truth", "max": 0.02},
+         {"suite": "quick", "variant": "licrom/m", "metric": "pos_rmse_rel", "max": 0.02},
+         {"suite": "quick", "variant": "licrom/m", "metric": "pos_rmse_rel", "max": 0.02, "against_truth": True}]
+
+
+def test_an_uncertified_truth_makes_a_tight_accuracy_verdict_undecidable():
+    statuses = [v.status for v in check(_truth_rows(certified=False, est=0.01), GATES, "quick")]
+    assert statuses == ["undecidable", "passed", "undecidable"]  # 0.02 < 3 x 0.01; pos_rmse_rel only if marked
+    assert not any(v.passed or v.failed for v in check(_truth_rows(False, 0.01), GATES[:1], "quick"))
+    assert [v.status for v in check(_truth_rows(False, 0.005), GATES, "quick")] == ["passed"] * 3  # 0.02 >= 0.015
+    assert [v.status for v in check(_truth_rows(True, 0.05), GATES, "quick")] == ["passed"] * 3  # certified
+    failing = [g | {"max": 0.001} for g in GATES]
+    assert [v.status for v in check(_truth_rows(True, 0.0001), failing, "quick")] == ["failed"] * 3
+
+
+def test_undecidable_is_no_failure_of_gate_nor_a_regression_of_compare(tmp_path: Path):
+    out = tmp_path / "out"
+    out.mkdir()
+    _truth_rows(certified=False, est=0.01).to_csv(out / "results.csv", index=False)
+    (out / "run.json").write_text(json.dumps({"suite": "quick"}))
+    gates = tmp_path / "gates.toml"
+    gates.write_text('[[gate]]\nsuite = "quick"\nvariant = "licrom/m"\nmetric = "err_truth"\nmax = 0.02\n'
+                     '[[gate]]\nsuite = "quick"\nvariant = "licrom/m"\nmetric = "pos_rmse_rel"\nmax = 0.02\n')
+    text = io.StringIO()
+    with redirect_stdout(text), redirect_stderr(io.StringIO()):
+        code = main(["gate", str(out), "--gates", str(gates)])
+    assert code == 0 and "UNDECIDABLE" in text.getvalue() and "1 undecidable" in text.getvalue()
+    gates.write_text(gates.read_text().replace("max = 0.02\n", "max = 0.001\n", 1).replace("0.02", "0.001"))
+    with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
+        assert main(["gate", str(out), "--gates", str(gates)]) == 1  # pos_rmse_rel 0.004 > 0.001 fails
+    # the baseline passed the err_truth gate with a certified truth; the new set's truth is uncertified
+    comparison = compare_results(_truth_rows(True, 0.001), _truth_rows(False, 0.01), gates=GATES[:1])
+    row = comparison[comparison["metric"] == "err_truth"].iloc[0]
+    assert row["verdict"] != "regression" and "undecidable" in row["reason"]
+
+
+def test_the_shipped_suites_with_a_truth():
+    assert load_suite("quick").truth is not None and load_suite("paper").truth is not None
+    assert load_suite("quick").truth.depth <= 2  # CI-sized
