@@ -1,15 +1,20 @@
 """The results store: one folder per (scenario, solver, settings) run, keyed by a hash, written atomically.
 
-A run folder holds `trajectory.npz` and `stats.json`; it counts as done only once `stats.json` exists (written
-last), so an interrupted run is simply redone and a rerun recomputes only what is missing.
+A run folder holds `trajectory.npz`, a reduced run's `basis.npy` and `stats.json`; it counts as done only once
+`stats.json` exists (written last), so an interrupted run is simply redone and a rerun recomputes only what is
+missing. Only the client writes the store: workers return what they computed (`bench.payload`).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+import tempfile
 from functools import lru_cache
 from pathlib import Path
+
+import numpy as np
 
 from scenarios.load import scenario_to_dict
 from scenarios.model import MeshSpec, Scenario
@@ -50,11 +55,22 @@ class RunStore:
         """Whether run `key` finished (its stats were written, after its trajectory)."""
         return (self.folder(key) / "stats.json").is_file()
 
-    def save(self, key: str, traj: Trajectory | None, stats: dict) -> Path:
-        """Store a run: trajectory first, stats last (the completion marker)."""
+    def save(self, key: str, traj: Trajectory | None, stats: dict, basis: np.ndarray | None = None) -> Path:
+        """Store a run: trajectory and basis (a reduced run's, (n, 3, r)) first, stats last (the completion
+        marker); each file is written atomically."""
         folder = self.folder(key)
         if traj is not None:
             traj.save(folder / "trajectory.npz")
+        if basis is not None:
+            folder.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=folder, prefix=".basis.npy.", suffix=".tmp")
+            try:
+                with os.fdopen(fd, "wb") as f:
+                    np.save(f, basis, allow_pickle=False)
+                os.replace(tmp, folder / "basis.npy")
+            except BaseException:
+                Path(tmp).unlink(missing_ok=True)
+                raise
         write_json_atomic(folder / "stats.json", stats)
         return folder
 
@@ -64,3 +80,11 @@ class RunStore:
         stats = json.loads((folder / "stats.json").read_text())
         path = folder / "trajectory.npz"
         return (Trajectory.load(path) if path.is_file() else None), stats
+
+    def basis(self, key: str, stats: dict) -> np.ndarray | None:
+        """The basis a reduced run used (None for full-space runs): its `basis.npy`, else the file its `stats`
+        name under `basis_path` (stores written before runs kept their basis), if that still exists."""
+        path = self.folder(key) / "basis.npy"
+        if not path.is_file():
+            path = Path(stats.get("basis_path") or self.folder(key) / "basis.npy")
+        return np.load(path, allow_pickle=False) if path.is_file() else None
