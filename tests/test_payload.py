@@ -1,0 +1,47 @@
+"""Task payloads: artefact folders carried by content, and the parameters that point at a worker's copy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bench.payload import Artefact, artefact_folders, localised
+from bench.store import RunStore
+
+
+def test_an_artefact_is_written_once_where_its_content_says_and_parameters_follow(tmp_path):
+    model = tmp_path / "client" / "models" / "pod-1"
+    model.mkdir(parents=True)
+    (model / "basis.npz").write_bytes(b"W")
+    (model / "info.json").write_text('{"train_s": 1.0}')
+    (model / ".basis.npz.tmp").write_bytes(b"half-written")  # an atomic write in progress is not part of it
+    params = {"r": 8, "cubature": "all", "basis": str(model / "basis.npz"), "scheme": "newton"}
+    assert artefact_folders(params) == [str(model)]
+    artefact = Artefact.of(model)
+    assert [name for name, _ in artefact.files] == ["basis.npz", "info.json"]
+    worker = tmp_path / "worker"
+    local = localised(params, (artefact,), worker)
+    copy = worker / artefact.digest
+    assert local == params | {"basis": str(copy / "basis.npz")}
+    assert (copy / "basis.npz").read_bytes() == b"W" and (copy / "info.json").read_text() == '{"train_s": 1.0}'
+    (copy / "basis.npz").write_bytes(b"seen")  # a second task finds the copy and does not write it again
+    assert localised(params, (artefact,), worker) == local and (copy / "basis.npz").read_bytes() == b"seen"
+    assert [p.name for p in worker.iterdir()] == [artefact.digest]  # no temporary folder left behind
+    (model / "basis.npz").write_bytes(b"W2")  # other content, another copy
+    assert Artefact.of(model).digest != artefact.digest
+    assert localised(params, (), worker) == params  # nothing carried: parameters unchanged
+
+
+def test_the_store_keeps_a_reduced_runs_basis_in_its_folder(tmp_path):
+    store = RunStore(tmp_path / "runs")
+    W = np.arange(24.0).reshape(2, 3, 4)
+    store.save("pod-x", None, {"failed": False}, W)
+    store.save("full-y", None, {"failed": False})
+    assert np.array_equal(store.basis("pod-x", {}), W)
+    assert store.basis("full-y", {}) is None
+    old = tmp_path / "cache" / "W.npy"  # a store written before: its stats name the basis file
+    old.parent.mkdir()
+    np.save(old, W)
+    assert np.array_equal(store.basis("full-y", {"basis_path": str(old)}), W)
+    assert not list(Path(tmp_path / "runs").rglob("*.tmp"))
