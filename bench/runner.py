@@ -114,6 +114,7 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
 
     Each distinct mesh and artefact is shared with the workers once; the client stores each result as it
     arrives, so an interruption costs only the tasks in flight (a Dask task whose worker dies is rerun on another).
+    A task that gives no result (not a failed run, which is a result) is raised once every other one is stored.
     """
     todo = [t for t in {t.key: t for t in tasks}.values() if not store.done(t.key)]
     if not todo:
@@ -132,9 +133,16 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
                     artefacts[folder] = ex.share(Artefact.of(folder))
             carried = tuple(artefacts[folder] for folder in artefact_folders(t.params))
             futures[ex.submit(execute, t, meshes[spec], carried, device, threads)] = t
+        lost = []
         for f in tqdm(ex.as_completed(futures), total=len(futures), desc=desc, unit="run"):
-            result = f.result()
+            try:
+                result = f.result()
+            except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
+                lost.append(err)      # still stored, and the rerun computes only this one
+                continue
             store.save(futures[f].key, result.trajectory, result.stats, result.basis)
+    if lost:
+        raise lost[0]
     return len(todo)
 
 

@@ -45,3 +45,35 @@ def test_the_store_keeps_a_reduced_runs_basis_in_its_folder(tmp_path):
     np.save(old, W)
     assert np.array_equal(store.basis("full-y", {"basis_path": str(old)}), W)
     assert not list(Path(tmp_path / "runs").rglob("*.tmp"))
+
+
+def test_a_task_without_a_result_is_raised_once_the_others_are_stored(tmp_path, monkeypatch):
+    """A task whose result never comes back (its workers died) does not cost the results that did."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    import pytest
+
+    import bench.runner as runner
+    from bench.runner import Task, run_tasks
+    from scenarios.load import scenario_from_dict
+
+    class InThread(ThreadPoolExecutor):
+        share = staticmethod(lambda obj: obj)
+        as_completed = staticmethod(lambda futures: as_completed(list(futures)))
+
+    def execute(task, *args):
+        if task.scenario.plane.friction == 0.6:
+            raise RuntimeError("every worker that tried it died")
+        return real_execute(task, *args)
+
+    real_execute = runner.execute
+    monkeypatch.setattr(runner, "make_executor", lambda kind, jobs: InThread(max_workers=1))
+    monkeypatch.setattr(runner, "execute", execute)
+    base = {"name": "drop", "mesh": {"name": "block", "resolution": "coarse"}, "initial": {"clearance": 0.01},
+            "time": {"dt": 0.01, "duration": 0.02}}
+    tasks = [Task(scenario_from_dict(base | {"plane": {"friction": mu}}, source="test"), "full", {})
+             for mu in (0.6, 0.2, 0.4)]
+    store = RunStore(tmp_path / "runs")
+    with pytest.raises(RuntimeError, match="every worker that tried it died"):
+        run_tasks(tasks, store, "cpu", jobs=1, executor="process", desc="lost")
+    assert [store.done(t.key) for t in tasks] == [False, True, True]
