@@ -35,7 +35,8 @@ from bench.store import load_run_info
 from scenarios.suites import load_suite
 
 #: Columns never compared: measured times (and what is derived from them) and provenance.
-IGNORED_COLUMNS: frozenset[str] = frozenset(TIMING_COLUMNS) | frozenset(PROVENANCE_COLUMNS) | {"warmup_s", "run"}
+IGNORED_COLUMNS: frozenset[str] = (frozenset(TIMING_COLUMNS) | frozenset(PROVENANCE_COLUMNS)
+                                   | {"warmup_s", "run", "wall_s_per_sim_s", "speedup_equal_accuracy", "frontier_note"})
 EXACT_RTOL = 1e-9
 REDUCED_RTOL = 1e-6
 #: Absolute floor of the comparison: values within it of each other are equal whatever their ratio.

@@ -62,5 +62,5 @@ VARIANTS: dict[str, list[Variant]] = {
               DT_HALF],
 }
 DEFAULT = "licrom,licrom-affine,pod,affine,full-sweep"
-SUITE_DEFAULTS = {"hard": "hard", "paper": "paper"}
+SUITE_DEFAULTS = {"hard": "hard", "paper": "paper", "paper-damped": "paper"}
 """Default variant sets of suites that need another matrix than DEFAULT (`frictionbench run` without --solvers)."""
