@@ -73,7 +73,7 @@ def test_gate_verdicts_must_agree() -> None:
     assert compare_verdicts(table(), table(), "quick", gates) == []
     worse = changed(1, "max_penetration_rel", 3e-3)
     (d,) = compare_verdicts(table(), worse, "quick", gates)
-    assert (d.old, d.new) == (True, False) and "quick/a" in d.where
+    assert (d.old, d.new) == ("passed", "failed") and "quick/a" in d.where
 
 
 def write_folder(folder: Path, frame: pd.DataFrame) -> Path:
