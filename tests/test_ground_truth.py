@@ -162,3 +162,16 @@ def test_undecidable_is_no_failure_of_gate_nor_a_regression_of_compare(tmp_path:
 def test_the_shipped_suites_with_a_truth():
     assert load_suite("quick").truth is not None and load_suite("paper").truth is not None
     assert load_suite("quick").truth.depth <= 2  # CI-sized
+
+
+def test_the_deepest_ladder_run_passes_the_resource_guard_before_any_work():
+    from bench.runner import guard_resources, truth_config
+
+    d = _suite_dict(depth=5, integrator="backward-euler")
+    d["base"]["time"] = {"dt": 1e-4, "duration": 1.0}  # 10,000 steps; the ladder's deepest run takes 320,000
+    suite = suite_from_dict(d)
+    guard_resources(suite, [])
+    with pytest.raises(ScenarioError, match="320,000 steps"):
+        guard_resources(suite, [], truth=truth_config(suite))
+    guard_resources(suite, [], allow_large=True, truth=truth_config(suite))
+    assert truth_config(suite, with_truth=False) is None
