@@ -7,7 +7,8 @@ solver's kernels (projected Hessian, direct solve on the free degrees of freedom
 from __future__ import annotations
 
 import numpy as np
-from solvers.full.solver import FullSpaceSolver, sparse_spd_solve
+from solvers.full.solver import FullSpaceSolver
+from solvers.linalg import sparse_spd_solve
 
 
 def static_equilibrium(solver: FullSpaceSolver, fixed: np.ndarray, tol: float = 1e-10,
