@@ -159,3 +159,16 @@ def test_element_ranges_give_bitwise_the_single_launch(contact_hessians):
                 ref = solver.elem_blocks.numpy().copy()
                 assert np.abs(ref).max() > 0
             assert np.array_equal(solver.elem_blocks.numpy(), ref)
+
+
+@needs_pardiso
+def test_the_step_benchmark_breaks_a_contact_step_down_for_each_solver():
+    from bench.benchmark_step import benchmark
+
+    records = benchmark(["hard/E1e9"], ["superlu:1", "pardiso:1"], steps=1, settle=1)
+    assert [r["linear_solver"] for r in records] == ["superlu", "pardiso"]
+    for r in records:
+        parts = [r[f"{p}_ms"] for p in ("assembly", "factorisation", "solve", "line_search")]
+        assert min(parts) > 0 and sum(parts) < r["step_ms"] and r["newton_iters"][0] >= 1
+    assert records[1]["x_end_diff_rel"] < 1e-10 and records[1]["factor_nnz"] > 0
+    assert records[0]["newton_iters"] == records[1]["newton_iters"]
