@@ -172,3 +172,22 @@ def test_the_step_benchmark_breaks_a_contact_step_down_for_each_solver():
         assert min(parts) > 0 and sum(parts) < r["step_ms"] and r["newton_iters"][0] >= 1
     assert records[1]["x_end_diff_rel"] < 1e-10 and records[1]["factor_nnz"] > 0
     assert records[0]["newton_iters"] == records[1]["newton_iters"]
+
+
+def test_simulate_selects_the_linear_solver_and_stats_json_says_which_ran(tmp_path):
+    import io
+    import json
+    from contextlib import redirect_stderr, redirect_stdout
+
+    from bench.cli import main
+
+    out = tmp_path / "s"
+    with redirect_stdout(io.StringIO()):
+        assert main(["simulate", "verify/block_fall", "--linear", "superlu", "--out", str(out), "--no-vtu",
+                     "--quiet"]) == 0
+    assert json.loads((out / "stats.json").read_text())["linear_solver"] == "superlu"
+    err = io.StringIO()
+    with redirect_stderr(err), redirect_stdout(io.StringIO()):
+        assert main(["simulate", "verify/block_fall", "--solver", "affine", "--linear", "superlu",
+                     "--out", str(tmp_path / "a"), "--quiet"]) == 2
+    assert "--linear" in err.getvalue() and "superlu" in err.getvalue()
