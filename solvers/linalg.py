@@ -34,10 +34,10 @@ except (ImportError, OSError) as err:  # not installed (non-x86 platforms), or m
 #: PARDISO matrix type: real symmetric positive definite (Cholesky, no pivoting).
 MTYPE_REAL_SPD = 2
 #: PARDISO's iparm (0-based index: value) set here; every other entry is 0. 0: use these values, not PARDISO's
-#: defaults; 1: nested-dissection ordering (METIS); 7: no iterative refinement (the defaults do 2 steps a solve,
-#: which quadruples the solve time and changes nothing measurable on these SPD matrices: residuals ~1e-14
-#: either way); 9: pivot perturbation 1e-8 (PARDISO's value for symmetric matrices, unused without pivoting);
-#: 17: report the nonzeros of the factor in iparm[17].
+#: defaults; 1: nested-dissection ordering (METIS); 7: iterative refinement only where pivots were perturbed, never
+#: in a Cholesky factorisation (the defaults do 2 steps a solve, which quadruples the solve time and changes nothing
+#: measurable on these SPD matrices: residuals ~1e-14 either way); 9: pivot perturbation 1e-8 (PARDISO's value for
+#: symmetric matrices, unused without pivoting); 17: report the nonzeros of the factor in iparm[17].
 PARDISO_IPARM = {0: 1, 1: 2, 7: 0, 9: 8, 17: -1}
 #: Names `make_factoriser` accepts.
 DIRECT_SOLVERS = ("direct", "pardiso", "superlu")
@@ -138,8 +138,14 @@ class PardisoFactoriser:
         weakref.finalize(self, self._pardiso.free_memory, True)  # PARDISO's memory is outside Python's heap
 
     def _phase(self, phase: int, b: np.ndarray) -> np.ndarray:
+        """Run PARDISO phase `phase` (11 analysis, 22 numeric factorisation, 33 solve) on self.H with right-hand
+        side b (3n, 1); an error names the phase (-4 in factorisation: the matrix is not positive definite)."""
         self._pardiso.set_phase(phase)
-        return self._pardiso._call_pardiso(self.H, b)  # noqa: SLF001 (pypardiso's phase-level entry point)
+        try:
+            return self._pardiso._call_pardiso(self.H, b)  # noqa: SLF001 (pypardiso's phase-level entry point)
+        except pypardiso.pardiso_wrapper.PyPardisoError as err:
+            raise RuntimeError(f"PARDISO phase {phase} on the ({self.H.shape[0]} x {self.H.shape[0]}) Newton "
+                               f"matrix failed with error {err.value} (-4: not positive definite)") from err
 
     @property
     def factor_nnz(self) -> int:

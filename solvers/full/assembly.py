@@ -29,7 +29,7 @@ def thread_budget() -> int:
 
 @cache
 def _pool(threads: int) -> ThreadPoolExecutor:
-    """One shared pool per thread count (solvers come and go; their launches are short)."""
+    """One shared pool per thread count, kept for the process (solvers come and go; their launches are short)."""
     return ThreadPoolExecutor(threads, thread_name_prefix="warp-cpu")
 
 
@@ -53,7 +53,8 @@ class ElementRanges:
         per_element[i] consecutive rows per element (element e owns rows [k e, k (e + 1))), cut to the range;
         every other input is passed whole. The kernel must index those arrays by its thread id only.
 
-        The first launch of a kernel runs the ranges in turn (it loads the kernel's module, not thread-safe).
+        The calling thread runs the first range, pool threads the others. A kernel's first launch runs the ranges in
+        turn: it may compile and load the kernel's module, which is done once, from one thread.
         """
         if len(self.ranges) == 1:
             wp.launch(kernel, self.m, device=self.device, inputs=inputs)
@@ -69,5 +70,7 @@ class ElementRanges:
                 run(r)
             self._loaded.add(kernel)
             return
-        for f in [_pool(len(self.ranges)).submit(run, r) for r in self.ranges]:
+        others = [_pool(len(self.ranges) - 1).submit(run, r) for r in self.ranges[1:]]
+        run(self.ranges[0])
+        for f in others:
             f.result()
