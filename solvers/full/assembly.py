@@ -36,7 +36,7 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 class ElementRanges:
     """m elements on `device` cut into up to `threads` contiguous ranges (one launch per range, in parallel)."""
 
-    def __init__(self, m: int, device: wp.context.Device, threads: int) -> None:
+    def __init__(self, m: int, device: wp.Device, threads: int) -> None:
         k = 1 if device.is_cuda else max(1, min(threads, m // MIN_ELEMENTS_PER_THREAD))
         bounds = [m * i // k for i in range(k + 1)]
         self.ranges = list(zip(bounds[:-1], bounds[1:]))
