@@ -26,6 +26,8 @@ import scipy.sparse.linalg as spla
 try:  # loading pypardiso loads MKL's runtime (mkl_rt), so thread-pool limits entered later apply to it
     import pypardiso
 
+    if not hasattr(pypardiso.PyPardisoSolver, "_call_pardiso"):  # the phase-level call used below (pypardiso 0.4)
+        raise ImportError(f"pypardiso {pypardiso.__version__} has no PyPardisoSolver._call_pardiso")
     PARDISO_ERROR = ""
 except (ImportError, OSError) as err:  # not installed (non-x86 platforms), or mkl_rt missing / not loadable
     pypardiso = None
