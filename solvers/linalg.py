@@ -161,6 +161,7 @@ class PardisoFactoriser:
         if not self._analysed:
             self._phase(11, dummy)
             self._analysed = True
+        self._factorised = False  # until this factorisation succeeds: never solve with a stale factor
         self._phase(22, dummy)
         self._factorised = True
 

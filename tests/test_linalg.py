@@ -196,7 +196,10 @@ def test_simulate_selects_the_linear_solver_and_stats_json_says_which_ran(tmp_pa
 @needs_pardiso
 def test_pardiso_refuses_an_indefinite_matrix_by_name_and_recovers_on_the_next():
     f = linalg.make_factoriser("pardiso", np.array([0, 1]), np.array([0]), 1)
+    f.factorize(np.eye(3)[None])
     with pytest.raises(RuntimeError, match=r"PARDISO phase 22 .* error -4"):
         f.factorize(np.diag([1.0, -1.0, 1.0])[None])
+    with pytest.raises(RuntimeError, match="before factorize"):
+        f.solve(np.ones(3))  # not with the factor of the matrix before the failed one
     f.factorize(np.diag([1.0, 2.0, 4.0])[None])
     assert np.allclose(f.solve(np.ones(3)), [1.0, 0.5, 0.25], rtol=1e-14)
