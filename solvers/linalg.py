@@ -80,6 +80,7 @@ class SuperLUFactoriser:
     def factorize(self, values: np.ndarray) -> None:
         """Fresh minimum-degree ordering and LU factorisation of the (3n, 3n) matrix with blocks `values`."""
         H = sp.bsr_matrix((values, self.cols, self.offsets), shape=(3 * self.n, 3 * self.n)).tocsc()
+        self._lu = None  # until this factorisation succeeds
         self._lu = superlu_spd(H)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
