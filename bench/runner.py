@@ -446,11 +446,12 @@ def with_ref_dt_change(rows: list[dict]) -> list[dict]:
 
 
 def _timing(stats: dict, ref_stats: dict, dt: float) -> dict:
-    """Timing and solver-health columns (Newton failures, line-search stalls, step retries); speedup = the
-    reference's step time / this step time, both measured in this run; wall_s_per_sim_s = the steps' wall time
-    per simulated second at time step dt [s] (warm-up, setup and training apart)."""
+    """Timing and solver-health columns (Newton failures, line-search stalls, step retries, the linear solver that
+    ran: `linear_solver` of a full-space run's stats); speedup = the reference's step time / this step time, both
+    measured in this run; wall_s_per_sim_s = the steps' wall time per simulated second at time step dt [s]
+    (warm-up, setup and training apart)."""
     keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
-            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries")
+            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries", "linear_solver")
     row = {k: stats.get(k) for k in keys}
     row["wall_s_per_sim_s"] = wall_s_per_sim_s([s["wall_s"] for s in stats.get("per_step", [])], dt)
     if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
