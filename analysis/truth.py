@@ -30,6 +30,8 @@ TWO_LEVEL_ORDER = 1.0
 #: An accuracy verdict whose threshold is below this multiple of an uncertified truth's error estimate is
 #: undecidable: the truth is not known well enough to tell the run's error from the truth's own.
 UNDECIDABLE_FACTOR = 3.0
+#: The frontier note of a run more accurate than every ladder run but the truth (no speedup number).
+MORE_ACCURATE = "more accurate than the ladder"
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,7 @@ def full_space_cost(front: Sequence[tuple[float, float]], err: float) -> tuple[f
     if not front:
         return None, "no ladder"
     if err < front[-1][0]:
-        return None, "more accurate than the ladder"
+        return None, MORE_ACCURATE
     if len(front) == 1:
         return (front[0][1], "") if err == front[0][0] else (None, "one ladder point")
     if err > front[0][0]:

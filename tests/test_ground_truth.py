@@ -138,6 +138,14 @@ def test_an_uncertified_truth_makes_a_tight_accuracy_verdict_undecidable():
     assert [v.status for v in check(_truth_rows(True, 0.0001), failing, "quick")] == ["failed"] * 3
 
 
+def test_a_speedup_gate_on_a_run_more_accurate_than_the_ladder_is_undecidable():
+    rows = pd.DataFrame([{"suite": "quick", "scenario": "quick/a", "solver": "licrom", "variant": "m",
+                          "status": "ok", "speedup_equal_accuracy": None, "frontier_note": note}
+                         for note in ("more accurate than the ladder", "no ladder")])
+    gate = {"suite": "quick", "variant": "licrom/m", "metric": "speedup_equal_accuracy", "min": 10.0}
+    assert [v.status for v in check(rows, [gate], "quick")] == ["undecidable", "failed"]
+
+
 def test_undecidable_is_no_failure_of_gate_nor_a_regression_of_compare(tmp_path: Path):
     out = tmp_path / "out"
     out.mkdir()
