@@ -31,6 +31,7 @@ from scenarios.meshes import TetMesh, load_mesh
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, TruthSpec, load_suite
 from solvers.registry import entries, register_entries
+from solvers.trajectory import Trajectory
 
 #: The time integrator of a scenario that names none (before `time.integrator` existed: backward Euler).
 DEFAULT_INTEGRATOR = "backward-euler"
@@ -279,7 +280,7 @@ class Ladder:
         sc = self.member.scenario
         return Task(ladder_variant(sc, self.integrator, k, self.solver).scenario(sc), self.solver, {})
 
-    def add(self, task: Task, store: RunStore, previous: object) -> object:
+    def add(self, task: Task, store: RunStore, previous: Trajectory | None) -> Trajectory | None:
         """Record the finished run of the next level; returns its trajectory (None if it failed)."""
         traj, stats = store.load(task.key)
         if traj is None or stats.get("failed"):
@@ -304,7 +305,7 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
     truth's integrator first)."""
     ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference)} for m in suite.scenarios}
     climbing = [by[spec.integrator] for by in ladders.values()]
-    last: dict[int, object] = {}
+    last: dict[int, Trajectory | None] = {}
     k = 0
     while climbing:
         tasks = [ladder.task(k) for ladder in climbing]
@@ -321,7 +322,7 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
             by[integrator] = Ladder(truth.member, integrator, reference)
             others += [(by[integrator], by[integrator].task(k)) for k in range(truth.good_levels)]
     run_tasks([t for _, t in others], store, device, jobs, executor, "frontier ladders")
-    previous: dict[int, object] = {}
+    previous: dict[int, Trajectory | None] = {}
     for ladder, task in others:
         if not ladder.failed:
             previous[id(ladder)] = ladder.add(task, store, previous.get(id(ladder)))
