@@ -235,7 +235,7 @@ def test_the_resolved_viscosity_gives_the_first_mode_its_damping_ratio(box):
     omega_1 = pv.first_mode(model)[0]
     near = lam[np.argmin(np.abs(np.abs(lam) - omega_1) + (lam.imag <= 0) * 1e30)]
     assert abs(near) == pytest.approx(omega_1, rel=1e-2)
-    assert -near.real / abs(near) == pytest.approx(zeta, rel=0.02)
+    assert -near.real / abs(near) == pytest.approx(zeta, rel=1e-3)  # measured: 0.04999999
     # proportional: twice the ratio, twice the viscosity
     double = free_body(box, Material(damping_ratio=2 * zeta), Initial(), 0.01, 0.01)
     assert double.viscosity == pytest.approx(2 * model.viscosity, rel=1e-9)
