@@ -227,7 +227,7 @@ def test_the_resolved_viscosity_gives_the_first_mode_its_damping_ratio(box):
     assert model.damping_ratio == zeta and model.viscosity > 0.0
     K = T.element_blocks(model, pm.element_hessians(model.X, model.tets, model.Dm_inv, model.vol, model.mu_snh,
                                                     model.lam_snh, project=False)).toarray()
-    C = model.viscosity * pv.unit_viscous_hessian(model).toarray()
+    C = VISCOUS.hessian(model, T.StepData(model.X, model.X, 1.0), model.X).toarray()  # eta D_1 (h_eff = 1)
     m = np.repeat(model.mass, 3)
     k = K.shape[0]
     A = np.block([[np.zeros((k, k)), np.eye(k)], [-K / m[:, None], -C / m[:, None]]])

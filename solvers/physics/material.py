@@ -151,7 +151,7 @@ def pulled_back(H9: np.ndarray, Dm_inv: np.ndarray, vol: np.ndarray) -> np.ndarr
     g = shape_gradients(Dm_inv)  # (m, 4, 3)
     # d vec(F)[3 i + j] / d x[a, alpha] = delta_{i alpha} g[a, j]
     B = np.einsum("il,eaj->eijal", np.eye(3), g).reshape(-1, 9, 12)
-    return vol[:, None, None] * np.einsum("eki,ekl,elj->eij", B, H9, B)
+    return vol[:, None, None] * (np.swapaxes(B, 1, 2) @ H9 @ B)
 
 
 @register

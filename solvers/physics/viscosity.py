@@ -115,20 +115,25 @@ def first_mode(model: Model) -> tuple[float, np.ndarray]:
     return float(np.sqrt(w[6])), phi[:, cluster]
 
 
-def unit_viscous_hessian(model: Model) -> sp.csr_matrix:
-    """D_1 (3n, 3n) [kg/s per Pa s]: the viscous Hessian at rest per unit eta and unit h_eff, the damping matrix
-    per unit viscosity (C = eta D_1)."""
-    return element_blocks(model, viscous_element_hessians(model.X, model.X, model.tets, model.Dm_inv,
-                                                          model.vol, 1.0))
+def rest_dissipation(model: Model, phi: np.ndarray) -> np.ndarray:
+    """phi^T D_1 phi (k,) [kg/s per Pa s] for displacement fields phi (3n, k), with D_1 the viscous Hessian at
+    rest per unit eta and unit h_eff (the damping matrix per unit viscosity, C = eta D_1). At rest F = F_bar = I,
+    so only the Gauss-Newton part is left and dE = sym(dF): phi^T D_1 phi = sum_e 2 V_e |sym(dF_e(phi))|_F^2."""
+    out = np.empty(phi.shape[1])
+    for k in range(phi.shape[1]):
+        dF = deformation_gradient(phi[:, k].reshape(-1, 3), model.tets, model.Dm_inv)
+        sym = 0.5 * (dF + np.swapaxes(dF, 1, 2))
+        out[k] = 2.0 * float(model.vol @ np.einsum("eij,eij->e", sym, sym))
+    return out
 
 
 def viscosity_for_damping_ratio(model: Model, zeta: float) -> float:
     """The viscosity eta [Pa s] that gives the first non-rigid mode the damping ratio zeta [-]:
-    eta = 2 zeta omega_1 / (phi_1^T D_1 phi_1); for a degenerate mode, phi_1^T D_1 phi_1 is the mean over its
-    eigenspace (its trace there over its dimension), which does not depend on the basis of the eigenspace."""
+    eta = 2 zeta omega_1 / (phi_1^T D_1 phi_1); for a degenerate mode, phi_1^T D_1 phi_1 is the mean over an
+    M-orthonormal basis of its eigenspace (the trace there over its dimension), which does not depend on the
+    basis."""
     omega, phi = first_mode(model)
-    d = float(np.trace(phi.T @ (unit_viscous_hessian(model) @ phi))) / phi.shape[1]
-    return 2.0 * zeta * omega / d
+    return 2.0 * zeta * omega / float(rest_dissipation(model, phi).mean())
 
 
 @register
