@@ -12,10 +12,12 @@ import scipy.linalg as sla
 
 from scenarios.errors import ScenarioError
 from scenarios.load import scenario_from_dict, scenario_hash, scenario_to_dict
-from scenarios.meshes import TetMesh, make_mesh
+from scenarios.meshes import TetMesh, load_mesh, make_mesh
 from scenarios.meshgen import structured_box
 from scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
 from solvers.baselines import full_basis
+from solvers.full import kernels as K
+from solvers.full.assembly import ElementRanges
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.licrom.reduced import ReducedSolver, ReducedState
 from solvers.model import Model, build_model, initial_state, rotation_matrix
@@ -117,6 +119,27 @@ def test_warp_kernels_match_numpy_reference(box):
     H = VISCOUS.hessian(model, step, x).toarray()
     Hw = solver.pattern.to_scipy(solver.values.numpy()).toarray()
     assert np.abs(Hw - H).max() < 1e-10 * np.abs(H).max()
+
+
+def test_the_threaded_hessian_launch_is_bitwise_the_single_launch():
+    """Element ranges on threads (solvers.full.assembly) write the same blocks as one launch (2113 tets: 2 ranges)."""
+    mesh = load_mesh(MeshSpec("cheese", "coarse"))
+    model = free_body(mesh, Material(viscosity=50.0), Initial(), 0.01, 0.01)
+    solver = FullSpaceSolver(model)
+    solver.x_bar.assign(_perturbed(model, 11, 0.002))
+    solver.x.assign(_perturbed(model, 12, 0.002))
+    ins = [solver.x, solver.x_bar, solver.tets, solver.Dm_inv, solver.vol, model.viscosity / 0.01]
+    ref = None
+    for threads in (1, 2):
+        ranges = ElementRanges(model.tets.shape[0], solver.device, threads)
+        assert ranges.threads == threads
+        for _ in range(2):  # a kernel's first launch runs the ranges in turn, later ones in parallel threads
+            solver.elem_blocks.zero_()
+            ranges.launch(K.viscous_hessian_kernel, ins + [solver.elem_blocks], {2: 1, 3: 1, 4: 1, 6: 16})
+            if ref is None:
+                ref = solver.elem_blocks.numpy().copy()
+                assert np.abs(ref).max() > 0
+            assert np.array_equal(solver.elem_blocks.numpy(), ref)
 
 
 def test_reduced_evaluation_matches_the_full_space_reference(box):

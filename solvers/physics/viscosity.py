@@ -174,8 +174,10 @@ class Viscosity(BodyTerm):
         if mode == 0:
             wp.launch(K.viscous_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.energy_buf])
         else:
-            wp.launch(K.viscous_gradient_hessian_kernel, m.tets.shape[0], device=d,
-                      inputs=ins + [solver.blockmap, solver.grad, solver.values])
+            wp.launch(K.viscous_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.grad])
+            solver.elements.launch(K.viscous_hessian_kernel, ins + [solver.elem_blocks], {2: 1, 3: 1, 4: 1, 6: 16})
+            wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
+                      inputs=[solver.elem_blocks, solver.blockmap, solver.values])
 
     def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
         """The cubature sum at F_c(q) against F_c(q_bar): energy, gradient B^T (w V P) and Hessian B^T (w V H9) B."""
