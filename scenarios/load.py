@@ -48,16 +48,17 @@ optional and defaults to the dataclass default unless said otherwise below):
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
 contact = a plane exists; friction = contact and mu > 0; damping = contact and contact.damping > 0; viscosity =
-true (the term exists where the material gives a viscosity or a damping ratio). An explicit entry may turn any term off; turning on a term the
-scene cannot have (contact without a plane, friction or damping without contact, viscosity without a material
-viscosity or damping ratio) is an error. `friction = true` with mu = 0 (or `damping = true` with a zero contact
-damping, `gravity = true` with a zero gravity vector) is allowed: the term is then identically zero and a solver
-builds nothing for it.
+true (the term exists where the material gives a viscosity or a damping ratio). An explicit entry may turn any
+term off; turning on a term the scene cannot have (contact without a plane, friction or damping without contact,
+viscosity without a material viscosity or damping ratio) is an error. `friction = true` with mu = 0 (or
+`damping = true` with a zero contact damping, `gravity = true` with a zero gravity vector, a zero viscosity) is
+allowed: the term is then identically zero and a solver builds nothing for it.
 
 `scenario_to_dict` writes the canonical dict of a scenario (every field explicit, plane normalised, effects
 resolved; the material's viscosity and damping ratio only where given, and the viscosity effect only where the
-material has one of them, so that undamped scenes keep the hashes they had before material damping existed); `scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a
-scenario built or modified in code. `scenario_hash` hashes what is simulated, not what it is called.
+material has one of them, so that undamped scenes keep the hashes they had before material damping existed);
+`scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a scenario built or
+modified in code. `scenario_hash` hashes what is simulated, not what it is called.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The static simulation `Model` built from a scenario and a mesh, and the changing `State`.
 
-Newton-style split: a `Model` holds what does not change during a run (rest mesh, masses, material, plane,
-contact points and their area weights, material damping, which effects exist); a `State` holds positions and velocities; a solver
-advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share both.
+Newton-style split: a `Model` holds what does not change during a run (rest mesh, masses, material with its
+damping, plane, contact points and their area weights, which effects exist); a `State` holds positions and
+velocities; a solver advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share both.
 """
 
 from __future__ import annotations

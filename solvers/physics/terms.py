@@ -1,6 +1,6 @@
 """Physics terms of the incremental potential as objects: one `Term` per effect, each in its own module of
-solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, Kelvin-Voigt material damping in viscosity.py,
-penalty contact, barrier contact and contact damping in contact.py, friction in friction.py).
+solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, Kelvin-Voigt material damping in
+viscosity.py, penalty contact, barrier contact and contact damping in contact.py, friction in friction.py).
 
 A term holds its pure numpy reference (energy [J], gradient (n, 3) [N], PSD-projected Hessian (3n, 3n) [N/m] over
 the vertex positions x (n, 3) [m]) and its evaluation for each backend: `launch` adds it with the full-space warp
