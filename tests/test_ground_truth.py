@@ -183,3 +183,13 @@ def test_the_deepest_ladder_run_passes_the_resource_guard_before_any_work():
         guard_resources(suite, [], truth=truth_config(suite))
     guard_resources(suite, [], allow_large=True, truth=truth_config(suite))
     assert truth_config(suite, with_truth=False) is None
+
+
+def test_paper_damped_is_the_papers_matrix_with_material_damping():
+    paper, damped = load_suite("paper"), load_suite("paper-damped")
+    assert [(m.split, dict(m.labels)) for m in damped.scenarios] == [(m.split, dict(m.labels)) for m in paper.scenarios]
+    for a, b in zip(paper.scenarios, damped.scenarios):
+        assert a.scenario.material.damping_ratio is None and a.scenario.material.viscosity is None
+        assert b.scenario.material.damping_ratio == 0.05 and b.scenario.effects.viscosity
+        assert b.scenario.plane == a.scenario.plane and b.scenario.mesh == a.scenario.mesh
+    assert damped.truth == paper.truth

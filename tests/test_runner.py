@@ -297,7 +297,7 @@ def test_only_runs_the_matching_members(tmp_path, suite_file):
                  "--no-report"]) == 2
 
 
-@pytest.mark.parametrize("suite", ["quick", "paper", "hard"])
+@pytest.mark.parametrize("suite", ["quick", "paper", "paper-damped", "hard"])
 def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
     """A gate on a label no default run produces would only ever fail as 'matched no row' after a long run."""
     from bench.cli import parse_variants
