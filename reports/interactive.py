@@ -75,6 +75,11 @@ BOOT_JS = """
       table.parentNode.insertBefore(box, table);
     }
   }
+  // plotly.js rejects the promise of an animation that another one interrupts (Pause, or a slider step during
+  // Play) with no reason at all; that is how its buttons work, not an error.
+  window.addEventListener("unhandledrejection", function (e) {
+    if (e.reason === undefined) { e.preventDefault(); }
+  });
   document.querySelectorAll("table.sortable").forEach(sortable);
   var pending = Array.prototype.map.call(document.querySelectorAll("div.plot"), draw);
   Promise.all(pending).then(function () { document.body.dataset.plotsReady = "yes"; });

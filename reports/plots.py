@@ -118,10 +118,7 @@ def frontier_figure(frame: pd.DataFrame) -> dict[str, object]:
         data.append({"type": "scatter", "mode": "lines", "name": "Pareto front (medians)",
                      "x": medians["x"].iloc[front].tolist(), "y": medians["y"].iloc[front].tolist(),
                      "line": {"shape": "hv", "color": "#c0392b", "dash": "dot", "width": 1.5},
-                     "hovertext": [_hover(label, "median over scenarios", {cols.error: y, cols.cost: x})
-                                   for label, x, y in zip(medians.index[front], medians["x"].iloc[front],
-                                                          medians["y"].iloc[front])],
-                     "hoverinfo": "text"})
+                     "hoverinfo": "skip"})  # its corners are medians: the runs' points carry the hover
     for n, (integrator, g) in enumerate(f[f["ladder"]].groupby("integrator", sort=True)):
         for m, (scenario, curve) in enumerate(g.groupby("scenario", sort=True)):
             curve = curve.sort_values("x")
