@@ -72,9 +72,10 @@ def _count(mask: pd.Series) -> str:
     return f"{int(mask.sum())} of {len(mask)}" if len(mask) else "\u2013"
 
 
-def best_variants(frame: pd.DataFrame) -> dict[str, str]:
-    """Solver family -> the label (`solver/variant`) of its variant with the lowest median error over its
-    finished runs (the error column of `accuracy_columns`); ladder rows are left out."""
+def ranked_variants(frame: pd.DataFrame) -> dict[str, list[str]]:
+    """Solver family -> the labels (`solver/variant`) of its variants from the lowest median error over their
+    finished runs (the error column of `accuracy_columns`) to the highest, those without an error last; ladder
+    rows are left out."""
     cols = accuracy_columns(frame)
     f = frame[~ladder_mask(frame)]
     if f.empty or "solver" not in f:
@@ -84,7 +85,12 @@ def best_variants(frame: pd.DataFrame) -> dict[str, str]:
     medians = medians.groupby(["family", "label"], sort=True)["err"].median().reset_index()
     medians["missing"] = medians["err"].isna()
     medians = medians.sort_values(["family", "missing", "err", "label"])
-    return dict(medians.groupby("family", sort=True)["label"].first())
+    return {family: list(g["label"]) for family, g in medians.groupby("family", sort=True)}
+
+
+def best_variants(frame: pd.DataFrame) -> dict[str, str]:
+    """Solver family -> the label of its best variant (the first of `ranked_variants`)."""
+    return {family: labels[0] for family, labels in ranked_variants(frame).items()}
 
 
 def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.DataFrame:

@@ -20,7 +20,7 @@ import pandas as pd
 
 from analysis.derived import remeshing_summary
 from analysis.table import PROVENANCE_COLUMNS, results_frame, variant_labels
-from reports.headline import best_variants, headline_table, truth_summary, verdict_frame
+from reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
 from reports.interactive import page_scripts, plot_div, plotly_version
 from reports.plots import error_over_time_figure, frontier_figure, ladder_figure
 from reports.viewer import DEFAULT_BUDGET, ViewerBudget, viewer_figure
@@ -58,7 +58,7 @@ class ScenarioRuns:
     the truth when there is one, else against the reference (`analysis.metrics.error_over_time`); plane: drawn
     in the viewer; reference_label: the reference's label; truth: the scenario's ground-truth run (None: none),
     truth_label its label. The viewer shows the truth, the reference and, of the others, each solver family's
-    best variant (`reports.headline.best_variants`; the first three others where none of them is one).
+    best variant among them (`reports.headline.ranked_variants`; the first three where none is ranked).
     """
 
     scenario: str
@@ -220,13 +220,18 @@ def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:
 
 def _viewers(runs: Sequence[ScenarioRuns], frame: pd.DataFrame, budget: ViewerBudget) -> str:
     """Per scenario, the animated 3D viewer of its truth, reference and each family's best variant."""
-    best = set(best_variants(frame).values())
+    ranked = ranked_variants(frame)
     parts = [_note(f"Each scenario's runs side by side, coloured by the distance of each surface point to the "
                    f"first one (the truth, else the reference), as a fraction of the body's size L. Play/Pause "
                    f"and the slider step through time; drag to turn, scroll to zoom. Surfaces decimated to at "
                    f"most {budget.max_triangles} triangles, at most {budget.max_frames} frames.")]
     for n, run in enumerate(runs):
-        chosen = {k: v for k, v in run.others.items() if k in best} or dict(list(run.others.items())[:3])
+        chosen = {}
+        for labels in ranked.values():  # each family's best variant among this scenario's runs
+            label = next((label for label in labels if label in run.others), None)
+            if label is not None:
+                chosen[label] = run.others[label]
+        chosen = chosen or dict(list(run.others.items())[:3])
         shown = ([(run.truth_label, run.truth)] if run.truth is not None else [])
         shown += [(run.reference_label, run.reference), *chosen.items()]
         figure, notes = viewer_figure(shown, run.plane, budget, distance_to=shown[0][0])

@@ -27,8 +27,8 @@ DISTANCE_COLORSCALE = [[0.0, "#dfe7f2"], [0.35, "#9ec5e8"], [0.7, "#f4a259"], [1
 class ViewerBudget:
     """Limits that keep the page small: frames per scenario and triangles per surface."""
 
-    max_frames: int = 30
-    max_triangles: int = 1200
+    max_frames: int = 24
+    max_triangles: int = 1000
 
     def __post_init__(self) -> None:
         if self.max_frames < 2:
@@ -137,12 +137,14 @@ def viewer_figure(runs: Sequence[tuple[str, Trajectory]], plane: Plane | None = 
     first_mesh = len(data)
     faces = {"i": typed_array(tris[:, 0], "i4"), "j": typed_array(tris[:, 1], "i4"),
              "k": typed_array(tris[:, 2], "i4")}
+    eye = 1.5 * _unit(0.85 * n + 0.6 * side - 0.25 * along)
+    light = dict(zip("xyz", (1e5 * _unit(eye + n)).tolist()))  # from above, behind the camera
     colorbar = {"title": {"text": text(f"distance to {distance_to} / L")}, "len": 0.7}
     for r, ((label, _), p, dist) in enumerate(zip(shown, placed, distance)):
         data.append({"type": "mesh3d", "name": text(label), **faces, **_coords(p[0], dist[0]),
                      "colorscale": DISTANCE_COLORSCALE, "cmin": 0.0, "cmax": top, "showscale": r == 1 or
                      len(shown) == 1, "colorbar": colorbar, "flatshading": True,
-                     "lighting": {"ambient": 0.55, "diffuse": 0.7, "specular": 0.1},
+                     "lighting": {"ambient": 0.7, "diffuse": 0.5, "specular": 0.05}, "lightposition": light,
                      "hovertemplate": f"{text(label)}<br>distance / L = %{{intensity:.3g}}<extra></extra>"})
     tops = [p.reshape(-1, 3)[np.argmax(p.reshape(-1, 3) @ n)] + 0.08 * width * n for p in placed]
     data.append({"type": "scatter3d", "mode": "text", "x": [t[0] for t in tops], "y": [t[1] for t in tops],
@@ -152,7 +154,6 @@ def viewer_figure(runs: Sequence[tuple[str, Trajectory]], plane: Plane | None = 
     frames = [{"name": name, "traces": list(range(first_mesh, first_mesh + len(shown))),
                "data": [_coords(p[k], dist[k]) for p, dist in zip(placed, distance)]}
               for k, name in enumerate(names)]
-    eye = 2.4 * _unit(0.85 * n + 0.6 * side - 0.25 * along)
     axis = {"visible": False, "showbackground": False}
     scene = {"aspectmode": "data", "camera": {"eye": dict(zip("xyz", eye.tolist())),
                                               "up": dict(zip("xyz", n.tolist()))},
