@@ -387,3 +387,37 @@ def test_vtu_series_reads_back(tmp_path: Path, runs) -> None:
         np.testing.assert_allclose(mesh.point_data["displacement"], ref.x[k] - ref.X)
         np.testing.assert_allclose(mesh.point_data["velocity"], np.tile([0.1, 0.0, 0.0], (ref.X.shape[0], 1)),
                                    atol=1e-12)
+
+
+def test_build_report_shows_the_truth_run_and_errors_against_it(tmp_path: Path, block) -> None:
+    from bench.reporting import build_report
+    from bench.store import RunStore
+
+    suite = tmp_path / "tiny.toml"
+    suite.write_text('[suite]\nname = "tiny"\ndescription = "stored runs"\n[base.mesh]\nname = "block"\n'
+                     'resolution = "coarse"\n[base.time]\ndt = 0.01\nduration = 0.05\n[[axis]]\nname = "mu"\n'
+                     'field = "plane.friction"\nvalues = [0.3]\n')
+    out = tmp_path / "out"
+    store = RunStore(out / "runs")
+    truth = {"truth_certified": True, "truth_err_est": 0.001, "truth_dt": 0.0025, "truth_depth": 2,
+             "truth_integrator": "bdf2"}
+    rows = []
+    for key, solver, variant, ladder, speed in [("ref", "full", "reference", "", 0.1),
+                                                ("lic", "licrom", "r20", "", 0.09),
+                                                ("l0", "full", "ladder-bdf2-0", "bdf2", 0.1),
+                                                ("l2", "full", "ladder-bdf2-2", "bdf2", 0.11)]:
+        traj = sliding(block, speed)
+        store.save(key, traj, {})
+        rows.append({"scenario": "s", "solver": solver, "variant": variant, "run": key, "ladder": ladder,
+                     "status": "ok", "err_truth": 0.01, "pos_rmse_rel": 0.01, **truth})
+    pd.DataFrame(rows).to_csv(out / "results.csv", index=False)
+    (out / "run.json").write_text(json.dumps({"suite": str(suite)}))
+    page = build_report(out).read_text(encoding="utf-8")
+    figs = figures(page)
+    shown = [t["name"] for t in figs["viewer-0"]["data"] if t["type"] == "mesh3d"]
+    assert shown == ["truth (full/ladder-bdf2-2)", "full", "licrom/r20"]  # not the other ladder level
+    errors = {t["name"]: t for t in figs["error-0"]["data"]}
+    assert set(errors) == {"full", "licrom/r20"}  # the reference too, against the truth
+    # the truth slides at 0.11 m/s, the reference at 0.1: every vertex 0.01 m apart at t = 1 s
+    assert errors["full"]["y"][-1] == pytest.approx(0.01 / bbox_diagonal(block[0]), rel=1e-6)
+    assert "error against truth (full/ladder-bdf2-2)" in figs["error-0"]["layout"]["title"]["text"]
