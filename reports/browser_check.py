@@ -92,11 +92,13 @@ def check_report(path: str | Path, chromium: str | None = None) -> list[str]:
         page.goto(url, wait_until="load")
         headings = page.locator("h2").all_inner_texts()
         n_plots = page.locator("div.plot").count()
-        try:  # the page's boot script marks the body once every figure is drawn
-            page.wait_for_function("document.body.dataset.plotsReady === 'yes'", timeout=PLOT_TIMEOUT_MS)
-            drawn = page.locator("div.plot.js-plotly-plot").count()
-        except PlaywrightTimeout:
-            drawn = -1
+        drawn = 0
+        if n_plots:
+            try:  # the page's boot script marks the body once every figure is drawn
+                page.wait_for_function("document.body.dataset.plotsReady === 'yes'", timeout=PLOT_TIMEOUT_MS)
+                drawn = page.locator("div.plot.js-plotly-plot").count()
+            except PlaywrightTimeout:
+                drawn = -1
         browser.close()
     problems = [f"console error: {e}" for e in errors]
     problems += [f"network request: {u}" for u in requests if u != url and not u.startswith("data:")]
