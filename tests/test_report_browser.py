@@ -62,7 +62,8 @@ def _report(block, out: Path, scenario: str, variant: str) -> Path:
              "step_ms_median": 1.0, "speedup": 40.0, "stick_agree": False}]
     errors = {label: error_over_time(ref, traj) for label, traj in others.items()}
     return write_report_html(rows, out, runs=[ScenarioRuns(scenario, ref, others, errors, plane=PLANE)],
-                             gates=[{"gate": variant, "scenario": scenario, "passed": False}], title=scenario)
+                             gates=[{"gate": f"{variant}-{k}", "scenario": scenario, "passed": k != 7}
+                                    for k in range(10)], title=scenario)
 
 
 @pytest.fixture
@@ -117,6 +118,12 @@ def test_frontier_hover_names_the_variant_and_the_viewer_plays(tmp_path: Path, b
     assert page.evaluate(first_column) == ["full", "licrom", "pod"]  # errors 0, 0.004, 0.08
     heading.click()
     assert page.evaluate(first_column) == ["pod", "licrom", "full"]
+    # The verdict table (10 rows) has a filter box: typing keeps the rows that contain every word.
+    page.locator("#gate-verdicts input.filter").fill("r8-7 failed")
+    visible = "#gate-verdicts tbody tr:not([hidden])"
+    assert page.locator(visible).count() == 1 and "r8-7" in page.locator(visible).inner_text()
+    page.locator("#gate-verdicts input.filter").fill("")
+    assert page.locator(visible).count() == 10
     assert problems == []
 
 
