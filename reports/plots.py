@@ -19,6 +19,10 @@ from reports.interactive import text
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
            "#17becf")
 
+#: Marker symbols, one per solver family in the frontier (colours repeat after ten variants, symbols tell apart).
+SYMBOLS = ("circle", "square", "diamond", "triangle-up", "cross", "x", "star", "hexagon", "pentagon",
+           "triangle-down")
+
 
 @dataclass(frozen=True)
 class AccuracyColumns:
@@ -100,15 +104,19 @@ def frontier_figure(frame: pd.DataFrame) -> dict[str, object]:
     against itself, the truth against itself)."""
     cols = accuracy_columns(frame)
     f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
+                      "family": frame["solver"].astype(str) if "solver" in frame else "",
                       "x": _numbers(frame, cols.cost), "y": _numbers(frame, cols.error),
                       "dt": _numbers(frame, "dt"), "ladder": ladder_mask(frame)})
     f["integrator"] = frame["ladder"].fillna("").astype(str) if "ladder" in frame else ""
     f = f[(f["x"] > 0) & (f["y"] > 0)]
     data: list[dict[str, object]] = []
     runs = f[~f["ladder"]]
+    families = sorted(runs["family"].unique())
     for n, (label, g) in enumerate(runs.groupby("label", sort=True)):
+        symbol = SYMBOLS[families.index(g["family"].iloc[0]) % len(SYMBOLS)]
         data.append({"type": "scatter", "mode": "markers", "name": text(label), "x": g["x"].tolist(),
-                     "y": g["y"].tolist(), "marker": {"size": 9, "color": PALETTE[n % len(PALETTE)]},
+                     "y": g["y"].tolist(), "marker": {"size": 9, "color": PALETTE[n % len(PALETTE)],
+                                                      "symbol": symbol},
                      "hovertext": [_hover(label, s, {cols.error: y, cols.cost: x})
                                    for s, x, y in zip(g["scenario"], g["x"], g["y"])],
                      "hoverinfo": "text"})
