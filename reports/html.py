@@ -205,7 +205,7 @@ def _ladders(frame: pd.DataFrame) -> str:
         return _note("No ground-truth ladder in this result set.")
     return (_note("Each ladder: the reference solver at halved time steps; err_truth of each level against the "
                   "scenario's truth, with the truth's own error estimate.")
-            + plot_div(figure, "ladders", 420))
+            + plot_div(figure, "ladders-plot", 420))
 
 
 def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:

@@ -170,11 +170,13 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
                       "y": _numbers(frame, "err_truth"), "est": _numbers(frame, "truth_err_est")})[ladder]
     data: list[dict[str, object]] = []
     scenarios = sorted(f["scenario"].astype(str).unique())
+    integrators = sorted(f["integrator"].unique())
     for (scenario, integrator), g in f.groupby(["scenario", "integrator"], sort=True):
         g = g[(g["dt"] > 0) & (g["y"] > 0)].sort_values("dt")
         color = PALETTE[scenarios.index(str(scenario)) % len(PALETTE)]
+        dash = ("solid", "dash", "dot")[integrators.index(integrator) % 3]
         data.append({"type": "scatter", "mode": "lines+markers", "name": text(f"{scenario}: {integrator}"),
-                     "x": g["dt"].tolist(), "y": g["y"].tolist(), "line": {"color": color},
+                     "x": g["dt"].tolist(), "y": g["y"].tolist(), "line": {"color": color, "dash": dash},
                      "hovertext": [_hover(label, scenario, {"dt": dt, "err_truth": y})
                                    for label, dt, y in zip(g["label"], g["dt"], g["y"])], "hoverinfo": "text"})
     for scenario, g in f.groupby("scenario", sort=True):
@@ -184,7 +186,7 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
             continue
         data.append({"type": "scatter", "mode": "lines", "name": text(f"{scenario}: truth's error estimate"),
                      "x": [dts.min(), dts.max()], "y": [est.iloc[0]] * 2,
-                     "line": {"color": PALETTE[scenarios.index(str(scenario)) % len(PALETTE)], "dash": "dash",
+                     "line": {"color": PALETTE[scenarios.index(str(scenario)) % len(PALETTE)], "dash": "longdashdot",
                               "width": 1}, "hoverinfo": "name"})
     return {"data": data, "layout": _layout("Ground-truth ladders: error against the truth per time step",
                                             "dt [s]", "err_truth")}

@@ -265,7 +265,7 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     assert len(ladders) == 2 and [t["showlegend"] for t in ladders] == [True, False]  # one legend entry
     assert ladders[0]["x"] == [40.0, 80.0, 160.0]  # the truth itself (error 0) is not on the log axis
     assert figs["frontier"]["layout"]["xaxis"]["title"]["text"].startswith("wall_s_per_sim_s")
-    assert "ladders" in figs and any("error estimate" in t["name"] for t in figs["ladders"]["data"])
+    assert any("error estimate" in t["name"] for t in figs["ladders-plot"]["data"])
 
 
 def test_headline_without_ground_truth_falls_back_to_the_reference(runs) -> None:
