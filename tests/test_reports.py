@@ -149,11 +149,13 @@ class _TagChecker(HTMLParser):
         self.stack: list[str] = []
         self.errors: list[str] = []
         self.refs: list[str] = []
+        self.ids: list[str] = []
         self.headings: list[str] = []
         self._in_h2 = False
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         self.refs += [value or "" for name, value in attrs if name in ("src", "href")]
+        self.ids += [value or "" for name, value in attrs if name == "id"]
         self._in_h2 = tag == "h2"
         if tag not in self.VOID:
             self.stack.append(tag)
@@ -173,6 +175,7 @@ def check_html(page: str) -> _TagChecker:
     checker.feed(page)
     checker.close()
     assert not checker.errors and not checker.stack
+    assert len(set(checker.ids)) == len(checker.ids)  # ids unique (sections, plots, figure JSON)
     return checker
 
 
@@ -256,6 +259,7 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     assert table.loc["pod", "stable runs"] == "1 of 2"  # slope's run failed
     assert table.loc["pod", "truth certified"] == "1 of 2 scenarios"
     page = write_report_html(frame, tmp_path, gates=gates).read_text(encoding="utf-8")
+    check_html(page)
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
     assert "certified on 1" in summary and "not certified: slope" in summary and "No ground truth" not in summary
     assert "Gates: 0 of 2 passed, 1 failed, 1 undecidable" in summary
