@@ -309,10 +309,17 @@ def _stability_matrix(gates: Sequence[object]) -> str:
     if verdicts.empty or not {"scenario", "variant", "metric"} <= set(verdicts):
         return _note("No gates apply to this suite, so no case is judged here.")
     verdicts = verdicts[verdicts["scenario"] != "(none)"]
-    failed = (verdicts[~verdicts["passed"].astype(bool)].groupby(["scenario", "variant"])["metric"]
-              .apply(lambda m: ", ".join(sorted(set(m)))))
-    cells = verdicts.groupby(["scenario", "variant"])["passed"].all().map({True: "pass", False: "fail"})
-    cells = cells.where(cells == "pass", "fail: " + failed.reindex(cells.index).fillna(""))
+    keys = ["scenario", "variant"]
+
+    def metrics_with(status: str) -> pd.Series:
+        """Per case, the metrics whose verdicts have this status (comma-separated)."""
+        return (verdicts[verdicts["status"] == status].groupby(keys)["metric"]
+                .apply(lambda m: ", ".join(sorted(set(m)))))
+
+    cells = pd.Series("pass", index=verdicts.groupby(keys).size().index)
+    undecidable, failed = metrics_with("undecidable"), metrics_with("failed")
+    cells.loc[undecidable.index] = "undecidable: " + undecidable
+    cells.loc[failed.index] = "fail: " + failed
     matrix = cells.unstack("variant").fillna("")
     matrix = matrix[sorted(matrix.columns, key=lambda c: (not str(c).startswith("full/"), str(c)))]  # full first
     counts = (matrix == "pass").sum().astype(str) + " / " + (matrix != "").sum().astype(str)
@@ -327,7 +334,8 @@ def _stability_matrix(gates: Sequence[object]) -> str:
             tds.append(f'<td class="{cls}">{html.escape(v)}</td>')
         body.append("<tr>" + "".join(tds) + "</tr>")
     return (_note("Cases against the gates and advisory checks (gates.toml) per solver variant and contact law: "
-                  "pass, or the metrics that failed.")
+                  "pass, or the metrics that failed (or, where none failed, those undecidable: an accuracy "
+                  "threshold below 3x an uncertified truth's error estimate).")
             + f'<div class="scroll"><table class="stability-matrix">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
             + "\n".join(body) + "\n</tbody>\n</table></div>")
 

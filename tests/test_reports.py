@@ -263,6 +263,8 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
     assert "certified on 1" in summary and "not certified: slope" in summary and "No ground truth" not in summary
     assert "Gates: 0 of 2 passed, 1 failed, 1 undecidable" in summary
+    stability = page[page.index('id="stability"'):page.index('id="gate-verdicts"')]
+    assert "undecidable: err_truth" in stability and "fail: finite" in stability
     figs = figures(page)
     frontier = figs["frontier"]["data"]
     ladders = [t for t in frontier if t.get("legendgroup") == "ladder bdf2"]
