@@ -10,7 +10,8 @@ from solvers.step_stats import StepStats
 
 class FullSpace(Solver):
     """Backward Euler on every vertex (`solvers.full.solver.FullSpaceSolver`): Newton tolerance `tol` [1/s,
-    relative to L], `linear` solve (`direct`, `cg`, `auto`) and `max_iter` Newton iterations per attempt."""
+    relative to L], `linear` solve (`auto`, `direct`, `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter`
+    Newton iterations per attempt."""
 
     name = "full"
     parameters = {"tol": NewtonSettings.tol, "linear": NewtonSettings.linear, "max_iter": NewtonSettings.max_iter}
@@ -24,3 +25,8 @@ class FullSpace(Solver):
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """One Newton-solved backward-Euler step."""
         return self.solver.step(state_in, state_out, dt)
+
+    def describe(self) -> dict:
+        """The parameters, and the linear solver and assembly threads that ran (`linear_solver`,
+        `assembly_threads`)."""
+        return super().describe() | self.solver.info
