@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.table import variant_labels
-from reports.plots import accuracy_columns, ladder_mask
+from reports.plots import accuracy_columns, ladder_mask, numeric_column
 
 #: Metrics of the gates and advisory checks that judge stability (a run's stability fails when one of them does).
 STABILITY_METRICS = frozenset({"status", "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_final",
@@ -53,18 +53,12 @@ def _truthy(value: object) -> bool:
     return bool(value)
 
 
-def _numbers(frame: pd.DataFrame, column: str) -> pd.Series:
-    if column not in frame:
-        return pd.Series(np.nan, index=frame.index, dtype=float)
-    return pd.to_numeric(frame[column], errors="coerce").astype(float)
-
-
 def _runs_ok(frame: pd.DataFrame) -> pd.Series:
     """Runs that finished (status ok or missing), with finite positions and no unconverged step."""
     status = frame["status"].fillna("ok").astype(str) if "status" in frame else pd.Series("ok", index=frame.index)
     finite = frame["finite"].map(lambda v: True if v is None or pd.isna(v) else _truthy(v)) if "finite" in frame \
         else pd.Series(True, index=frame.index)
-    unconverged = _numbers(frame, "not_converged").fillna(0.0)
+    unconverged = numeric_column(frame, "not_converged").fillna(0.0)
     return (status == "ok") & finite.astype(bool) & (unconverged == 0)
 
 
@@ -80,7 +74,7 @@ def ranked_variants(frame: pd.DataFrame) -> dict[str, list[str]]:
     f = frame[~ladder_mask(frame)]
     if f.empty or "solver" not in f:
         return {}
-    err = _numbers(f, cols.error).where(_runs_ok(f))
+    err = numeric_column(f, cols.error).where(_runs_ok(f))
     medians = pd.DataFrame({"family": f["solver"].astype(str), "label": variant_labels(f), "err": err})
     medians = medians.groupby(["family", "label"], sort=True)["err"].median().reset_index()
     medians["missing"] = medians["err"].isna()
@@ -118,8 +112,8 @@ def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.Data
         else:
             certified = "no truth"
         rows.append({"solver": family, "best variant": label, "runs": len(g),
-                     f"median {cols.error}": _numbers(g, cols.error).median(),
-                     f"median {cols.speedup}": _numbers(g, cols.speedup).median(),
+                     f"median {cols.error}": numeric_column(g, cols.error).median(),
+                     f"median {cols.speedup}": numeric_column(g, cols.speedup).median(),
                      "stick/slip agreement": _count(stick), "stable runs": _count(stable),
                      "truth certified": certified})
     return pd.DataFrame(rows)
@@ -133,11 +127,11 @@ def truth_summary(frame: pd.DataFrame) -> str:
         return ("No ground truth in this result set; accuracy against the same-dt reference (pos_rmse_rel, "
                 "fraction of the body's size L) and the step-time speed-up.")
     scen = frame["scenario"].astype(str) if "scenario" in frame else pd.Series("", index=frame.index)
-    has = _numbers(frame, "err_truth").notna()
+    has = numeric_column(frame, "err_truth").notna()
     scenarios = sorted(set(scen[has]))
     certified = (frame[has].groupby(scen[has])["truth_certified"].first().map(_truthy)
                  if "truth_certified" in frame else pd.Series(False, index=scenarios))
-    est = _numbers(frame[has], "truth_err_est").max()
+    est = numeric_column(frame[has], "truth_err_est").max()
     uncertified = [s for s in scenarios if not certified.get(s, False)]
     text = (f"Accuracy against the ground truth (err_truth, fraction of the body's size L) on {len(scenarios)} "
             f"scenarios, certified on {int(certified.sum())}"

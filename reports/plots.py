@@ -39,7 +39,7 @@ class AccuracyColumns:
     truth: bool
 
 
-def _numbers(frame: pd.DataFrame, column: str) -> pd.Series:
+def numeric_column(frame: pd.DataFrame, column: str) -> pd.Series:
     """The column as floats (NaN where missing or not a number; all NaN when the column is absent)."""
     if column not in frame:
         return pd.Series(np.nan, index=frame.index, dtype=float)
@@ -48,8 +48,8 @@ def _numbers(frame: pd.DataFrame, column: str) -> pd.Series:
 
 def accuracy_columns(frame: pd.DataFrame) -> AccuracyColumns:
     """The accuracy and cost columns of these results (see `AccuracyColumns`)."""
-    truth = bool(np.isfinite(_numbers(frame, "err_truth")).any())
-    wall = _numbers(frame, "wall_s_per_sim_s")
+    truth = bool(np.isfinite(numeric_column(frame, "err_truth")).any())
+    wall = numeric_column(frame, "wall_s_per_sim_s")
     return AccuracyColumns(error="err_truth" if truth else "pos_rmse_rel",
                            cost="wall_s_per_sim_s" if bool((wall > 0).any()) else "step_ms_median",
                            speedup="speedup_equal_accuracy" if truth else "speedup", truth=truth)
@@ -105,8 +105,8 @@ def frontier_figure(frame: pd.DataFrame) -> dict[str, object]:
     cols = accuracy_columns(frame)
     f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
                       "family": frame["solver"].astype(str) if "solver" in frame else "",
-                      "x": _numbers(frame, cols.cost), "y": _numbers(frame, cols.error),
-                      "dt": _numbers(frame, "dt"), "ladder": ladder_mask(frame)})
+                      "x": numeric_column(frame, cols.cost), "y": numeric_column(frame, cols.error),
+                      "dt": numeric_column(frame, "dt"), "ladder": ladder_mask(frame)})
     f["integrator"] = frame["ladder"].fillna("").astype(str) if "ladder" in frame else ""
     f = f[(f["x"] > 0) & (f["y"] > 0)]
     data: list[dict[str, object]] = []
@@ -166,8 +166,8 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
     if not ladder.any():
         return None
     f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
-                      "integrator": frame["ladder"].fillna("").astype(str), "dt": _numbers(frame, "dt"),
-                      "y": _numbers(frame, "err_truth"), "est": _numbers(frame, "truth_err_est")})[ladder]
+                      "integrator": frame["ladder"].fillna("").astype(str), "dt": numeric_column(frame, "dt"),
+                      "y": numeric_column(frame, "err_truth"), "est": numeric_column(frame, "truth_err_est")})[ladder]
     data: list[dict[str, object]] = []
     scenarios = sorted(f["scenario"].astype(str).unique())
     integrators = sorted(f["integrator"].unique())
