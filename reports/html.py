@@ -225,6 +225,10 @@ def _viewers(runs: Sequence[ScenarioRuns], frame: pd.DataFrame, budget: ViewerBu
                    f"first one (the truth, else the reference), as a fraction of the body's size L. Play/Pause "
                    f"and the slider step through time; drag to turn, scroll to zoom. Surfaces decimated to at "
                    f"most {budget.max_triangles} triangles, at most {budget.max_frames} frames.")]
+    scenarios = frame["scenario"].dropna().astype(str).unique() if "scenario" in frame else []
+    if len(runs) < len(scenarios):
+        parts.append(_note(f"Viewers for {len(runs)} of the {len(scenarios)} scenarios (those whose trajectories "
+                           "were given to the report), to keep the page small."))
     for n, run in enumerate(runs):
         chosen = {}
         for labels in ranked.values():  # each family's best variant among this scenario's runs

@@ -224,6 +224,7 @@ def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     assert len(viewer["frames"]) == ref.n_frames  # 11 frames, within the budget
     assert [t["name"] for t in viewer["data"] if t["type"] == "mesh3d"] == ["plane", "reference", "licrom/r16",
                                                                             "pod/r16"]
+    assert "Viewers for" not in page  # the one scenario has its viewer
     assert "Play" in json.dumps(viewer["layout"]["updatemenus"]) and len(viewer["layout"]["sliders"][0]["steps"]) == 11
 
 
@@ -416,12 +417,14 @@ def test_build_report_shows_the_truth_run_and_errors_against_it(tmp_path: Path, 
         store.save(key, traj, {})
         rows.append({"scenario": "s", "solver": solver, "variant": variant, "run": key, "ladder": ladder,
                      "status": "ok", "err_truth": 0.01, "pos_rmse_rel": 0.01, **truth})
+    rows.append({"scenario": "t", "solver": "licrom", "variant": "r20", "status": "failed"})  # no stored run
     pd.DataFrame(rows).to_csv(out / "results.csv", index=False)
     (out / "run.json").write_text(json.dumps({"suite": str(suite)}))
     page = build_report(out).read_text(encoding="utf-8")
     figs = figures(page)
     shown = [t["name"] for t in figs["viewer-0"]["data"] if t["type"] == "mesh3d"]
     assert shown == ["truth (full/ladder-bdf2-2)", "full", "licrom/r20"]  # not the other ladder level
+    assert "Viewers for 1 of the 2 scenarios" in page
     errors = {t["name"]: t for t in figs["error-0"]["data"]}
     assert set(errors) == {"full", "licrom/r20"}  # the reference too, against the truth
     # the truth slides at 0.11 m/s, the reference at 0.1: every vertex 0.01 m apart at t = 1 s
