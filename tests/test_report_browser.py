@@ -100,6 +100,13 @@ def test_frontier_hover_names_the_variant_and_the_viewer_plays(tmp_path: Path, b
     page.wait_for_selector("#frontier .hoverlayer .hovertext", timeout=5000)
     label = page.locator("#frontier .hoverlayer").text_content()
     assert "pod/r8" in label and "scenario: slide" in label
+    # A click on its legend entry hides the variant, a second shows it again.
+    entry = page.locator("#frontier .legend .traces", has_text="pod/r8")
+    visible = f"document.getElementById('frontier').data[{trace}].visible"
+    entry.click()
+    page.wait_for_function(f"{visible} === 'legendonly'", timeout=5000)
+    entry.click()
+    page.wait_for_function(f"{visible} === true", timeout=5000)
     # Play the viewer: the slider (the shown frame) moves on; Pause stops it.
     viewer = page.locator("#viewer-0")
     viewer.scroll_into_view_if_needed()
