@@ -89,8 +89,9 @@ def best_variants(frame: pd.DataFrame) -> dict[str, str]:
 
 def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.DataFrame:
     """One row per solver family: its best variant, runs, median error, median speed-up, stick/slip agreement,
-    stable runs (finished, finite, converged, and every stability check of its case passed) and the truth's
-    certification over its scenarios."""
+    stable runs (finished, finite, converged, and every stability check of its case passed), the truth's
+    certification over its scenarios and, where the results have them, the variant's frontier notes with their
+    counts."""
     cols = accuracy_columns(frame)
     best = best_variants(frame)
     labels = variant_labels(frame)
@@ -116,6 +117,10 @@ def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.Data
                      f"median {cols.speedup}": numeric_column(g, cols.speedup).median(),
                      "stick/slip agreement": _count(stick), "stable runs": _count(stable),
                      "truth certified": certified})
+        notes = g["frontier_note"].dropna().astype(str) if "frontier_note" in g else pd.Series(dtype=str)
+        notes = notes[notes.str.strip() != ""]
+        if not notes.empty:  # why a speed-up at equal accuracy is missing, e.g. more accurate than the ladder
+            rows[-1]["frontier note"] = "; ".join(f"{note} ({n})" for note, n in notes.value_counts().items())
     return pd.DataFrame(rows)
 
 

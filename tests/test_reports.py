@@ -240,7 +240,8 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
             rows.append({"scenario": s, "solver": solver, "variant": variant, "dt": 0.01, "status": status,
                          "err_truth": err, "pos_rmse_rel": err / 2, "wall_s_per_sim_s": wall,
                          "speedup_equal_accuracy": speed, "speedup": 99.0, "stick_agree": agree,
-                         "integrator": "backward-euler", "ladder": "", **truth})
+                         "integrator": "backward-euler", "ladder": "",
+                         "frontier_note": "less accurate than every ladder level" if solver == "pod" else "", **truth})
         for k, err in enumerate([0.1, 0.05, 0.02, 0.0]):
             rows.append({"scenario": s, "solver": "full", "variant": f"ladder-bdf2-{k}", "dt": 0.01 / 2 ** k,
                          "status": "ok", "err_truth": err, "wall_s_per_sim_s": 40.0 * 2 ** k, "ladder": "bdf2",
@@ -259,6 +260,8 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     assert table.loc["licrom", "stable runs"] == "1 of 2"  # drop's finite check failed
     assert table.loc["pod", "stable runs"] == "1 of 2"  # slope's run failed
     assert table.loc["pod", "truth certified"] == "1 of 2 scenarios"
+    assert table.loc["pod", "frontier note"] == "less accurate than every ladder level (2)"
+    assert pd.isna(table.loc["licrom", "frontier note"])
     page = write_report_html(frame, tmp_path, gates=gates).read_text(encoding="utf-8")
     check_html(page)
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
