@@ -168,7 +168,7 @@ def viewer_figure(runs: Sequence[tuple[str, Trajectory]], plane: Plane | None = 
                                                     "fromcurrent": True, "transition": {"duration": 0}}]},
                                    {"label": "Pause", "method": "animate", "args": [[None], still]}]}],
               "sliders": [{"active": 0, "x": 0.12, "len": 0.88, "y": 0.0, "yanchor": "top", "pad": {"t": 35},
-                           "currentvalue": {"prefix": "t = ", "suffix": " s"},
+                           "currentvalue": {"prefix": "t = ", "suffix": " s", "xanchor": "right"},
                            "steps": [{"label": f"{t:.3g}", "method": "animate", "args": [[name], still]}
                                      for t, name in zip(times, names)]}]}
     return {"data": data, "layout": layout, "frames": frames}, notes
