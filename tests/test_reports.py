@@ -32,7 +32,7 @@ from analysis.table import (
 from reports.export import export_vtu_series
 from reports.headline import headline_table
 from reports.html import ScenarioRuns, write_report_html
-from reports.interactive import plotly_js, script_json
+from reports.interactive import plot_div, plotly_js, script_json, typed_array
 from reports.plots import pareto_front
 from reports.viewer import ViewerBudget, decimate_surface, viewer_figure
 from scenarios.meshes import bbox_diagonal
@@ -312,6 +312,14 @@ def test_script_json_cannot_end_its_element() -> None:
     text = script_json({"name": "</script><!-- \u2028", "x": [1.0, float("nan")], "n": np.int64(3)})
     assert "<" not in text and ">" not in text and "\u2028" not in text
     assert json.loads(text) == {"name": "</script><!-- \u2028", "x": [1.0, None], "n": 3}
+
+
+def test_figure_helpers_refuse_bad_input() -> None:
+    with pytest.raises(ValueError, match="plot id 'a b'"):
+        plot_div({"data": []}, "a b")
+    with pytest.raises(ValueError, match="dtype 'f2'"):
+        typed_array(np.zeros(3), "f2")
+    assert np.frombuffer(base64.b64decode(typed_array(np.array([1.5, -2.0]))["bdata"]), "<f4").tolist() == [1.5, -2.0]
 
 
 def test_decimated_surface_keeps_its_budget_and_the_original_vertices() -> None:
