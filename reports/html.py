@@ -39,7 +39,6 @@ th { background: #f0f0f0; } td.text { text-align: left; }
 td.pass { background: #d7f0d7; } td.fail { background: #f6d0d0; }
 .banner { padding: .6em 1em; border-radius: 4px; font-weight: 600; }
 .banner.pass { background: #d7f0d7; } .banner.fail { background: #f6d0d0; }
-img { max-width: 100%; } figure { margin: .5em 0; } figcaption { font-size: .85em; color: #555; }
 .note { color: #555; font-size: .9em; } .scroll { overflow-x: auto; }
 th[data-sort] { background: #dde6f0; } th { cursor: pointer; } input.filter { margin: .4em 0; width: 20em; }
 .headline { font-size: 1.05em; } .headline li { margin: .15em 0; } .plot { width: 100%; }
@@ -108,8 +107,7 @@ def _table(frame: pd.DataFrame, verdicts: Sequence[str] = ()) -> str:
             cells.append(f'<td class="{cls}">{_cell(value)}</td>' if cls else f"<td>{_cell(value)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (f'<div class="scroll"><table class="sortable">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
-            + "\n".join(body)
-            + "\n</tbody>\n</table></div>")
+            + "\n".join(body) + "\n</tbody>\n</table></div>")
 
 
 def _note(text: str) -> str:
