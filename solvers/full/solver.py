@@ -114,6 +114,9 @@ class FullSpaceSolver:
         self.x_trial = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_hat = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_prev = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        # the dissipative terms' velocity (x - x_bar) / h_eff (backward Euler: x^n and h), set by `step`
+        self.x_bar = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.h_eff = 0.0
         self.grad = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.values = wp.zeros(self.pattern.nnzb, dtype=wp.mat33d, device=d)
         self.elem_blocks = wp.zeros(16 * model.tets.shape[0], dtype=wp.mat33d, device=d)
@@ -190,6 +193,8 @@ class FullSpaceSolver:
         x_hat = state_in.x + h * state_in.v
         self.x_hat.assign(x_hat)
         self.x_prev.assign(state_in.x)
+        self.x_bar.assign(state_in.x)
+        self.h_eff = h
         if m.has("friction"):
             self._lag_normal_pressure(state_in)
         x = x_hat.copy()

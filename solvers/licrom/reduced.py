@@ -152,21 +152,23 @@ class ReducedModel:
         [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c)."""
         m = self.model
         psi, P, H9 = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode)
-        E = float(self.wV @ psi)
-        if mode == K.ENERGY:
-            return E, None, None
+        return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None,
+                                                        H9 if mode == K.HESSIAN else None)
+
+    def pull_back(self, P: np.ndarray | None, H9: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The cubature sums of per-tet stresses P (c, 3, 3) [Pa] and density Hessians H9 (c, 9, 9) [Pa] (row-major
+        vec) in the latent coordinates: sum_c w_c V_c B_c^T vec P_c (r,) [N] and sum_c w_c V_c B_c^T H9_c B_c (r, r)
+        [N/m] (None where the input is None)."""
         Bf = self.B.reshape(-1, self.r)
-        g = Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
-        if mode == K.STRESS:
-            return E, g, None
+        g = None if P is None else Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
+        if H9 is None:
+            return g, None
         Hs = self.wV[:, None, None] * H9
         if self.B_sparse is None:
-            H = Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
-        else:
-            c = Hs.shape[0]
-            blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
-            H = (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
-        return E, g, H
+            return g, Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
+        c = Hs.shape[0]
+        blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
+        return g, (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
 
 
 def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -183,14 +185,17 @@ def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.nda
 
 @dataclass
 class ReducedStep:
-    """Per-step constants: dt h [s], q^n and q_hat (r,), contact points at the start x_prev (p, 3) [m] and the
-    lagged normal pressure fn (p,) [Pa] (None without friction)."""
+    """Per-step constants: dt h [s], q^n and q_hat (r,), contact points at the start x_prev (p, 3) [m], the
+    lagged normal pressure fn (p,) [Pa] (None without friction), and the integrator's data for the dissipative
+    body terms: their velocity is W (q - q_bar) / h_eff with q_bar (r,) and h_eff [s] (backward Euler: q^n, h)."""
 
     h: float
     q_prev: np.ndarray
     q_hat: np.ndarray
     x_prev: np.ndarray
     fn: np.ndarray | None
+    q_bar: np.ndarray
+    h_eff: float
 
 
 @dataclass
@@ -208,6 +213,13 @@ class _SamplePoints:
     grad_shape: np.ndarray
     S: np.ndarray
     S_cho: tuple
+
+    def forces(self, wV: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """The cubature tets' forces w_c V_c P_c g_a summed on their vertices, (k, 3) [N]; wV (c,) [m^3], P (c, 3, 3)
+        [Pa] the tets' stresses."""
+        out = np.zeros((self.vertices.size, 3))
+        np.add.at(out, self.local, wV[:, None, None] * np.einsum("cij,caj->cai", P, self.grad_shape))
+        return out
 
     @classmethod
     def build(cls, rm: ReducedModel) -> "_SamplePoints":
@@ -323,7 +335,7 @@ class ReducedSolver:
             v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
             fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness,
                                     m.contact_damping, c.barrier_stiffness, c.barrier_distance)
-        return ReducedStep(h, latent.q, latent.q + h * latent.qdot, x_prev, fn)
+        return ReducedStep(h, latent.q, latent.q + h * latent.qdot, x_prev, fn, latent.q, h)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
         """|W dq|_inf / h over all mesh vertices [m/s]."""

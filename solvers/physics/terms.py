@@ -1,6 +1,6 @@
 """Physics terms of the incremental potential as objects: one `Term` per effect, each in its own module of
-solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, penalty contact, barrier contact and
-contact damping in contact.py, friction in friction.py).
+solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, Kelvin-Voigt material damping in
+viscosity.py, penalty contact, barrier contact and contact damping in contact.py, friction in friction.py).
 
 A term holds its pure numpy reference (energy [J], gradient (n, 3) [N], PSD-projected Hessian (3n, 3n) [N/m] over
 the vertex positions x (n, 3) [m]) and its evaluation for each backend: `launch` adds it with the full-space warp
@@ -35,22 +35,32 @@ if TYPE_CHECKING:
 Evaluation = tuple[float, np.ndarray | None, np.ndarray | None]
 
 #: The modules that define terms, in the order their terms are summed.
-_MODULES = ("solvers.physics.inertia", "solvers.physics.material", "solvers.physics.contact",
-            "solvers.physics.friction")
+_MODULES = ("solvers.physics.inertia", "solvers.physics.material", "solvers.physics.viscosity",
+            "solvers.physics.contact", "solvers.physics.friction")
 _TERMS: list["Term"] = []
 
 
 @dataclass(frozen=True)
 class StepData:
     """One step's constants: x_hat = x^n + h v^n (n, 3) [m], x_prev = x^n (n, 3) [m], the time step h [s], the
-    lagged normal pressure fn (p,) [Pa] at the model's contact points (None without friction), and `inertia`
-    (False: static equilibrium, no inertial term)."""
+    lagged normal pressure fn (p,) [Pa] at the model's contact points (None without friction), `inertia`
+    (False: static equilibrium, no inertial term), and the integrator's data for the dissipative terms: their
+    velocity is v(x) = (x - x_bar) / h_eff with x_bar (n, 3) [m] and the effective step h_eff [s] (None: the
+    backward-Euler values x_bar = x_prev, h_eff = h)."""
 
     x_hat: np.ndarray
     x_prev: np.ndarray
     h: float
     fn: np.ndarray | None = None
     inertia: bool = True
+    x_bar: np.ndarray | None = None
+    h_eff: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.x_bar is None:
+            object.__setattr__(self, "x_bar", self.x_prev)
+        if self.h_eff is None:
+            object.__setattr__(self, "h_eff", self.h)
 
 
 class Term(ABC):
@@ -144,6 +154,15 @@ def scatter_points(model: Model, values: np.ndarray) -> np.ndarray:
     out = np.zeros((model.n, 3))
     np.add.at(out, model.points, values)
     return out
+
+
+def element_blocks(model: Model, blocks: np.ndarray) -> sp.csr_matrix:
+    """Per-tet Hessians (m, 12, 12), vertex-major (3 a + alpha over the tet's vertices a), summed into a (3n, 3n)
+    matrix."""
+    idx = (3 * model.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+    rows = np.repeat(idx, 12, axis=1).ravel()
+    cols = np.tile(idx, (1, 12)).ravel()
+    return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(3 * model.n, 3 * model.n))
 
 
 def point_blocks(model: Model, blocks: np.ndarray) -> sp.csr_matrix:
