@@ -41,7 +41,8 @@ optional and defaults to the dataclass default unless said otherwise below):
                   `clearance = false` keeps the mesh where it is (Initial.clearance = None). Without a plane
                   there is nothing to measure a clearance from: it defaults to false and a number is an error.
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
-    [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer)
+    [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
+                  integrator = "backward-euler" (default) | "bdf2"
     [effects]     gravity, elasticity, contact, friction, damping (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
@@ -53,7 +54,9 @@ builds nothing for it.
 
 `scenario_to_dict` writes the canonical dict of a scenario (every field explicit, plane normalised, effects
 resolved); `scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a
-scenario built or modified in code. `scenario_hash` hashes what is simulated, not what it is called.
+scenario built or modified in code. `scenario_hash` hashes what is simulated, not what it is called. The canonical
+dict leaves out `time.integrator` when it is the default (backward Euler), so that the hashes and run keys of
+scenarios from before the field are unchanged.
 """
 
 from __future__ import annotations
@@ -71,7 +74,8 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import ScenarioError, checked_table
-from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec, Vec3
+from scenarios.model import (INTEGRATORS, Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
+                             Vec3)
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
             "effects")
@@ -80,7 +84,7 @@ MATERIAL_KEYS = ("density", "youngs_modulus", "poisson_ratio")
 PLANE_KEYS = ("normal", "offset", "friction", "slope_deg", "downhill")
 CONTACT_KEYS = ("law", "stiffness", "damping", "friction_stiffness", "barrier_distance", "barrier_stiffness")
 INITIAL_KEYS = ("clearance", "rotation", "translation", "velocity", "angular_velocity", "squash")
-TIME_KEYS = ("dt", "duration", "frame_every")
+TIME_KEYS = ("dt", "duration", "frame_every", "integrator")
 EFFECT_KEYS = ("gravity", "elasticity", "contact", "friction", "damping")
 CONTACT_LAWS = ("penalty", "barrier")
 DOWNHILL_AXES = {"x": (1.0, 0.0), "-x": (-1.0, 0.0), "z": (0.0, 1.0), "-z": (0.0, -1.0)}
@@ -112,7 +116,8 @@ def scenario_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 
 
 def scenario_to_dict(s: Scenario) -> dict[str, Any]:
-    """The canonical dict of a scenario: every field explicit, TOML types only (`false` for absent values)."""
+    """The canonical dict of a scenario: every field explicit (but `time.integrator` at its default, see the module
+    docstring), TOML types only (`false` for absent values)."""
     mesh: dict[str, Any] = ({"path": s.mesh.path} if s.mesh.path
                             else {"name": s.mesh.name, "resolution": s.mesh.resolution})
     mesh["scale"] = s.mesh.scale
@@ -132,7 +137,7 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         "plane": plane,
         "contact": _as_dict(s.contact, CONTACT_KEYS) | ({"stiffness": "auto"} if s.contact.stiffness is None else {}),
         "initial": initial,
-        "time": _as_dict(s.time, TIME_KEYS),
+        "time": _as_dict(s.time, TIME_KEYS if s.time.integrator != TimeSpec.integrator else TIME_KEYS[:-1]),
         "effects": _as_dict(s.effects, EFFECT_KEYS),
     }
 
@@ -366,7 +371,10 @@ def _time(raw: object) -> TimeSpec:
     frame_every = t.get("frame_every", d.frame_every)
     if isinstance(frame_every, bool) or not isinstance(frame_every, numbers.Integral) or frame_every < 1:
         raise ScenarioError("time.frame_every", frame_every, "expected an integer >= 1")
-    return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every))
+    integrator = _string(t.get("integrator", d.integrator), "time.integrator")
+    if integrator not in INTEGRATORS:
+        raise ScenarioError("time.integrator", integrator, f"expected one of {list(INTEGRATORS)}")
+    return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every), integrator=integrator)
 
 
 def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact) -> Effects:

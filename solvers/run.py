@@ -25,14 +25,17 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
 
     Returns the trajectory (None if the run diverged before its first frame) and a stats dict: setup_s,
     warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
-    of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]), the solver's `describe()`,
-    `failed` and `failure` (reason) for a run that diverged. Raises `Skipped` for a scene the solver declines.
+    of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]), the time `integrator`, the
+    solver's `describe()`, `failed` and `failure` (reason) for a run that diverged. Raises `Skipped` for a scene the
+    solver declines, or whose integrator it does not implement.
     """
     params = dict(params or {})
     t0 = time.perf_counter()
     model = build_model(scenario, load_mesh(mesh or scenario.mesh))
     stepper = get_solver(solver)(device=device, **params)
-    reason = stepper.skip(model)
+    integrator = scenario.time.integrator
+    reason = (f"time.integrator = {integrator!r}: solver {solver!r} implements {list(stepper.integrators)}"
+              if integrator not in stepper.integrators else stepper.skip(model))
     if reason:
         raise Skipped(reason)
     stepper.setup(model)
@@ -44,8 +47,8 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     meta = {"solver": solver, "params": params, "device": device, "mesh": (mesh or scenario.mesh).key}
     stats: dict = {"setup_s": setup_s, "warmup_s": warmup_s, "device": device, "solver": solver, "params": params,
                    "mesh": (mesh or scenario.mesh).key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
-                   "terms": list(model.terms), "contact_stiffness": model.contact.stiffness, "failed": False,
-                   "failure": ""}
+                   "terms": list(model.terms), "integrator": integrator, "contact_stiffness": model.contact.stiffness,
+                   "failed": False, "failure": ""}
     stats.update(stepper.describe())
     t0 = time.perf_counter()
     try:
