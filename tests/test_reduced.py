@@ -92,8 +92,9 @@ def test_reduced_elastic_terms_match_full_space_assembly(block):
 
 
 # ----- the complete basis is the full-space solver ------------------------------------------------------------
+@pytest.mark.parametrize("integrator", ["backward-euler", "bdf2"])
 @pytest.mark.parametrize("kind", ["penalty", "penalty_damped", "barrier", "free_fall"])
-def test_full_basis_reproduces_full_space_solver(block, kind):
+def test_full_basis_reproduces_full_space_solver(block, kind, integrator):
     short = TimeSpec(dt=0.01, duration=0.05)
     if kind == "penalty":
         sc = replace(incline(30.0, 0.2), time=short)
@@ -107,7 +108,7 @@ def test_full_basis_reproduces_full_space_solver(block, kind):
                      initial=Initial(clearance=0.0005, rotation=(0.0, 0.0, -10.0), velocity=(0.0, -0.5, 0.0)))
     else:
         sc = Scenario(name="free_fall", mesh=MeshSpec("block", "coarse"), plane=None, time=short)
-    model = build_model(sc, block)
+    model = build_model(replace(sc, time=replace(sc.time, integrator=integrator)), block)
     ref, _ = simulate(model, FullSpaceSolver(model, settings=NewtonSettings(tol=1e-8)))
     solver = ReducedSolver(model, full_basis(model.n), tol=1e-8)
     traj, stats = simulate_reduced(model, solver)
