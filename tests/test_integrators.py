@@ -115,3 +115,13 @@ def test_a_retried_bdf2_step_restarts_from_backward_euler_and_keeps_the_history_
     assert np.abs(traj.x[-1] - half.x[-1]).max() < 1e-12
     half_be = run(replace(sc, time=replace(sc.time, dt=0.005, frame_every=20, integrator="backward-euler")))[0]
     assert np.abs(traj.x[-1] - half_be.x[-1]).max() > 1e-5  # and that is not backward Euler's answer
+
+
+def test_the_bdf2_variant_set_runs_the_reference_solver_under_bdf2():
+    from bench.cli import parse_variants
+    from bench.runner import REFERENCE
+
+    (variant,) = parse_variants("bdf2")
+    sc = variant.scenario(Scenario(name="x", mesh=MeshSpec("block", "coarse")))
+    assert variant.solver == REFERENCE and sc.time.integrator == "bdf2" and sc.time.dt == TimeSpec().dt
+    assert variant in parse_variants("full-sweep")
