@@ -41,6 +41,7 @@ VERSIONED_PACKAGES: dict[str, str] = {
     "torch": "torch_version",
     "warp-lang": "warp_version",
     "taichi": "taichi_version",
+    "mkl": "mkl_version",  # MKL PARDISO, the full-space solver's default linear solver (`linear_solver` per row)
 }
 PROVENANCE_COLUMNS: tuple[str, ...] = (
     "commit", "commit_dirty", "timestamp_utc", "device", "cpu_name", "gpu_name", "platform", "python_version",

@@ -39,7 +39,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--meshes", nargs="+", default=["cheese/coarse", "cheese/medium"])
     p.add_argument("--device", default="cpu")
-    p.add_argument("--linear", default="auto", choices=["auto", "direct", "cg"])
+    p.add_argument("--linear", default="auto", choices=["auto", "direct", "pardiso", "superlu", "cg"])
     p.add_argument("--steps", type=int, default=40)
     p.add_argument("--out", default="out/bench_full.json")
     a = p.parse_args()

@@ -78,6 +78,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         if "checkpoint" not in get_solver(args.solver).parameters:
             raise ScenarioError("--model", args.model, f"solver {args.solver!r} takes no checkpoint")
         params["checkpoint"] = args.model
+    if args.linear:
+        if args.solver != "full":
+            raise ScenarioError("--linear", args.linear, "the linear solver is the full-space solver's (--solver full)")
+        params["linear"] = args.linear
     traj, stats = run_scenario(scenario, args.solver, args.device, params, parse_mesh(args.mesh),
                                progress=not args.quiet)
     out = Path(args.out)
@@ -259,6 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--model", help="checkpoint of a trained reduced model (licrom)")
     s.add_argument("--mesh", help="another mesh of the same shape: name/resolution or a file")
+    s.add_argument("--linear", choices=["auto", "direct", "pardiso", "superlu", "cg"],
+                   help="the full-space solver's linear solver (default auto: PARDISO where it loads, else SuperLU, "
+                   "on the CPU; cg on CUDA; see solvers/linalg.py); stats.json says which ran")
     s.add_argument("--out", required=True)
     s.add_argument("--no-vtu", action="store_true", help="skip the VTU/PVD export")
     s.add_argument("-q", "--quiet", action="store_true")

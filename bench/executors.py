@@ -1,6 +1,8 @@
 """Pluggable executors for the matrix: a local process pool (default) or a Dask cluster.
 
-Both give `submit(fn, *args) -> future` and `as_completed(futures)`; the runner uses nothing else.
+Both give `share(obj) -> handle` (a large argument sent once per worker, passed to `submit` in place of the
+object), `submit(fn, *args) -> future` and `as_completed(futures)`; the runner uses nothing else. Tasks read and
+write no files of the client's (`bench.payload`): a Dask worker may share no filesystem with it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,11 @@ class ProcessExecutor:
 
     def __init__(self, jobs: int) -> None:
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+
+    @staticmethod
+    def share(obj: object) -> object:
+        """The object itself: a local worker receives its own copy with each task (pickled through a pipe)."""
+        return obj
 
     def submit(self, fn, *args) -> Future:
         """Schedule fn(*args)."""
@@ -50,8 +57,14 @@ class DaskExecutor:
                                                          dashboard_address=None)
         self.client = Client(address or self.cluster)
 
+    def share(self, obj: object):
+        """`obj` scattered to every worker once (a future; tasks given it receive the object, and a worker that
+        joins later or lost its copy fetches it from a peer)."""
+        return self.client.scatter(obj, broadcast=True, hash=False)
+
     def submit(self, fn, *args):
-        """Schedule fn(*args) on the cluster (pure=False: every submission runs)."""
+        """Schedule fn(*args) on the cluster (pure=False: every submission runs; a task whose worker dies is
+        rescheduled on another one)."""
         return self.client.submit(fn, *args, pure=False)
 
     @staticmethod

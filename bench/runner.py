@@ -4,7 +4,8 @@ Phases: (1) full-space references of every member (also the training data), (2) 
 shape on the suite's training split (cached), (3) every variant on every member (and on the other mesh of the
 shape, for remeshing), (4) metrics against the references -> results.csv and report.html. Each run is a folder of
 the `RunStore` keyed by a hash of its scenario and settings: an interrupted run resumes with what is missing.
-Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster).
+Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster):
+a task carries what its worker needs and returns what it produced (`bench.payload`); only the client writes here.
 """
 
 from __future__ import annotations
@@ -22,8 +23,10 @@ from analysis.metrics import compare
 from analysis.table import write_results_csv
 from analysis.transfer import transfer_to_mesh
 from bench.executors import make_executor
+from bench.payload import Artefact, RunResult, artefact_folders, localised
 from bench.store import RunStore, run_key
 from scenarios.atomic import write_json_atomic
+from scenarios.meshes import TetMesh, load_mesh
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, load_suite
 from solvers.registry import entries, register_entries
@@ -83,38 +86,70 @@ class Task:
         return run_key(self.scenario, self.solver, self.params, self.mesh)
 
 
-def execute(task: Task, store_root: str, device: str, threads: int = 1, solvers: dict[str, str] | None = None) -> str:
-    """Run one task into the store unless done (executed in a worker process, its BLAS, OpenMP and torch
-    thread pools limited to `threads` so that parallel workers do not oversubscribe the cores, with the parent's
-    registered `solvers` (`solvers.registry.entries`)); returns its key."""
+def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: str, threads: int = 1,
+            solvers: dict[str, str] | None = None) -> RunResult:
+    """Run one task on a worker, which may share no filesystem with the client: `mesh` is the task's mesh (the
+    arrays, not a path) and `artefacts` the folders its file parameters name (written once into the worker's
+    cache); returns the trajectory (with a reduced run's basis) and stats for the client to store. A failed run is
+    a result with its reason, never an exception. Its BLAS, OpenMP and torch thread pools are limited to `threads`
+    so that parallel workers do not oversubscribe the cores; the parent's registered `solvers`
+    (`solvers.registry.entries`) are registered here too."""
     from threadpoolctl import threadpool_limits
 
     from solvers.run import run_scenario
+    from solvers.warp_runtime import cache_root
 
     register_entries(solvers or {})
-    store = RunStore(store_root)
-    if not store.done(task.key):
-        try:
-            with threadpool_limits(threads):
-                traj, stats = run_scenario(task.scenario, task.solver, device, task.params, task.mesh)
-        except Exception as err:  # a failed run is a row with its reason, never a crash of the matrix
-            traj, stats = None, {"failed": True, "failure": f"{type(err).__name__}: {err}", "solver": task.solver}
-        stats["scenario"] = task.scenario.name
-        store.save(task.key, traj, stats)
-    return task.key
+    traj = None
+    try:
+        params = localised(task.params, artefacts, cache_root() / "artefacts")
+        with threadpool_limits(threads):
+            traj, stats = run_scenario(task.scenario, task.solver, device, params, task.mesh, tet_mesh=mesh)
+    except Exception as err:  # a failed run is a row with its reason, never a crash of the matrix
+        traj, stats = None, {"failed": True, "failure": f"{type(err).__name__}: {err}", "solver": task.solver}
+    stats["params"] = task.params  # the record names the client's artefacts, not the worker's copies
+    if traj is not None:
+        traj.meta["params"] = task.params
+    stats["scenario"] = task.scenario.name
+    return RunResult(traj, stats)
 
 
 def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, executor: str,
-              desc: str) -> None:
-    """Execute the tasks not yet done, `jobs` at a time, with a progress bar."""
+              desc: str) -> int:
+    """Execute the tasks not yet done, `jobs` at a time, with a progress bar; returns how many were computed.
+
+    Each distinct mesh and artefact is shared with the workers once; the client stores each result as it
+    arrives, so an interruption costs only the tasks in flight (a Dask task whose worker dies is rerun on another).
+    A task that gives no result (not a failed run, which is a result) is raised once every other one is stored.
+    """
     todo = [t for t in {t.key: t for t in tasks}.values() if not store.done(t.key)]
     if not todo:
-        return
+        return 0
     threads = max(1, (os.cpu_count() or 1) // jobs)
     with make_executor(executor, jobs) as ex:
-        futures = [ex.submit(execute, t, str(store.root), device, threads, entries()) for t in todo]
+        meshes: dict = {}
+        artefacts: dict = {}
+        futures = {}
+        for t in todo:
+            spec = t.mesh or t.scenario.mesh
+            if spec not in meshes:
+                meshes[spec] = ex.share(load_mesh(spec))
+            for folder in artefact_folders(t.params):
+                if folder not in artefacts:
+                    artefacts[folder] = ex.share(Artefact.of(folder))
+            carried = tuple(artefacts[folder] for folder in artefact_folders(t.params))
+            futures[ex.submit(execute, t, meshes[spec], carried, device, threads, entries())] = t
+        lost = []
         for f in tqdm(ex.as_completed(futures), total=len(futures), desc=desc, unit="run"):
-            f.result()
+            try:
+                result = f.result()
+            except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
+                lost.append(err)      # still stored, and the rerun computes only this one
+                continue
+            store.save(futures[f].key, result.trajectory, result.stats)
+    if lost:
+        raise lost[0]
+    return len(todo)
 
 
 def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
@@ -242,7 +277,8 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
                           "dt": task.scenario.time.dt,
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
-            rows.append(row | _timing(stats, v_ref_stats) | _metrics(v_ref, traj, task.scenario, stats))
+            rows.append(row | _timing(stats, v_ref_stats)
+                        | _metrics(v_ref, traj, task.scenario, stats))
     return with_ref_dt_change(with_remesh_ratio(rows))
 
 
@@ -263,10 +299,11 @@ def with_ref_dt_change(rows: list[dict]) -> list[dict]:
 
 
 def _timing(stats: dict, ref_stats: dict) -> dict:
-    """Timing and solver-health columns (Newton failures, line-search stalls, step retries); speedup = the
-    reference's step time / this step time, both measured in this run."""
+    """Timing and solver-health columns (Newton failures, line-search stalls, step retries, the linear solver that
+    ran: `linear_solver` of a full-space run's stats); speedup = the reference's step time / this step time, both
+    measured in this run."""
     keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
-            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries")
+            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries", "linear_solver")
     row = {k: stats.get(k) for k in keys}
     if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
         row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
@@ -274,8 +311,9 @@ def _timing(stats: dict, ref_stats: dict) -> dict:
 
 
 def _metrics(ref, traj, sc: Scenario, stats: dict) -> dict:
-    """Metric columns of one row; a failed run (diverged, or no trajectory) gets `status = failed`, its reason and
-    no accuracy metrics (a truncated trajectory would look accurate)."""
+    """Metric columns of one row (a reduced run's trajectory carries its basis, for the projection error); a failed
+    run (diverged, or no trajectory) gets `status = failed`, its reason and no accuracy metrics (a truncated
+    trajectory would look accurate)."""
     if traj is None or ref is None or stats.get("failed"):
         return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
     contact = replace(sc.contact, stiffness=stats["contact_stiffness"])  # the stiffness the run resolved

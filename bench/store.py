@@ -1,7 +1,8 @@
 """The results store: one folder per (scenario, solver, settings) run, keyed by a hash, written atomically.
 
-A run folder holds `trajectory.npz` and `stats.json`; it counts as done only once `stats.json` exists (written
-last), so an interrupted run is simply redone and a rerun recomputes only what is missing.
+A run folder holds `trajectory.npz` (with a reduced run's basis) and `stats.json`; it counts as done only once
+`stats.json` exists (written last), so an interrupted run is simply redone and a rerun recomputes only what is
+missing. Only the client writes the store: workers return what they computed (`bench.payload`).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ class RunStore:
         return (self.folder(key) / "stats.json").is_file()
 
     def save(self, key: str, traj: Trajectory | None, stats: dict) -> Path:
-        """Store a run: trajectory first, stats last (the completion marker)."""
+        """Store a run: trajectory first, stats last (the completion marker); each file is written atomically."""
         folder = self.folder(key)
         if traj is not None:
             traj.save(folder / "trajectory.npz")

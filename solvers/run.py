@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from scenarios.meshes import load_mesh
+from scenarios.meshes import TetMesh, load_mesh
 from scenarios.model import MeshSpec, Scenario
 from solvers.step_stats import stats_summary
 from solvers.model import State, build_model, initial_state
@@ -20,8 +20,11 @@ class Skipped(RuntimeError):
 
 
 def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", params: dict | None = None,
-                 mesh: MeshSpec | None = None, progress: bool = False) -> tuple[Trajectory | None, dict]:
-    """Simulate `scenario` (optionally on another mesh of the same shape) with the named solver.
+                 mesh: MeshSpec | None = None, progress: bool = False,
+                 tet_mesh: TetMesh | None = None) -> tuple[Trajectory | None, dict]:
+    """Simulate `scenario` (optionally on another mesh of the same shape) with the named solver; `tet_mesh` is
+    the mesh itself where it was loaded elsewhere (a worker that cannot read the mesh's file), else it is loaded
+    from `mesh` (default: the scenario's).
 
     Returns the trajectory (None if the run diverged before its first frame) and a stats dict: setup_s,
     warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
@@ -31,7 +34,7 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     """
     params = dict(params or {})
     t0 = time.perf_counter()
-    model = build_model(scenario, load_mesh(mesh or scenario.mesh))
+    model = build_model(scenario, tet_mesh if tet_mesh is not None else load_mesh(mesh or scenario.mesh))
     stepper = get_solver(solver)(device=device, **params)
     integrator = scenario.time.integrator
     reason = (f"time.integrator = {integrator!r}: solver {solver!r} implements {list(stepper.integrators)}"

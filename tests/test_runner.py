@@ -271,8 +271,10 @@ max = 1.01
     touching = barrier.loc["laws/touching"]
     assert touching["status"] == "failed" and "not applicable" in touching["failure"]
     assert "initial.clearance" in touching["failure"]
-    for column in ("not_converged", "line_search_stalls", "step_retries", "volume_ratio_final", "tags"):
+    for column in ("not_converged", "line_search_stalls", "step_retries", "volume_ratio_final", "tags",
+                   "linear_solver", "mkl_version"):
         assert column in rows
+    assert rows.loc[rows["variant"] == "reference", "linear_solver"].isin(["pardiso", "superlu"]).all()
     from bench.gates import check, load_gates
     from bench.reporting import build_report
 

@@ -11,8 +11,8 @@ from solvers.step_stats import StepStats
 
 class FullSpace(Solver):
     """Implicit time stepping on every vertex (`solvers.full.solver.FullSpaceSolver`; backward Euler or BDF2, the
-    scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear` solve (`direct`, `cg`,
-    `auto`) and `max_iter` Newton iterations per attempt."""
+    scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear` solve (`auto`, `direct`,
+    `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter` Newton iterations per attempt."""
 
     name = "full"
     integrators = INTEGRATORS
@@ -27,3 +27,8 @@ class FullSpace(Solver):
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """One Newton-solved step of the scenario's integrator."""
         return self.solver.step(state_in, state_out, dt)
+
+    def describe(self) -> dict:
+        """The parameters, and the linear solver and assembly threads that ran (`linear_solver`,
+        `assembly_threads`)."""
+        return super().describe() | self.solver.info

@@ -17,12 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 import warp as wp
 import warp.optim.linear as wpl
 import warp.sparse as wps
 
+from solvers.full.assembly import ElementRanges, thread_budget
 from solvers.integrators import lagged, previous_step
+from solvers.linalg import make_factoriser
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, feasible_step, minimise
 from solvers.physics.contact import lagged_pressure
@@ -32,7 +33,9 @@ from solvers.warp_runtime import init_warp
 
 @dataclass(frozen=True)
 class NewtonSettings:
-    """Newton tolerances: tol is relative to L per second; linear `direct` (CPU SuperLU), `cg` or `auto`.
+    """Newton tolerances: tol is relative to L per second; linear solver `pardiso` (MKL, SPD, analysis once),
+    `superlu` (SciPy), `direct` (PARDISO where it loads, else SuperLU), `cg` (warp, block Jacobi) or `auto` (direct
+    on the CPU, cg on CUDA); see `solvers.linalg`.
 
     max_iter: iterations per attempt; a 20 m/s impact on a soft body needs up to ~200 in its impact step (measured
     on the hard suite), and an attempt that runs out is retried as two half steps (`solvers.simulate`).
@@ -44,13 +47,6 @@ class NewtonSettings:
     cg_tol: float = 1e-10
     armijo: float = 1e-4
     max_halvings: int = 40
-
-
-def sparse_spd_solve(H: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
-    """Solve H x = b for a sparse symmetric positive-definite H with SuperLU in symmetric mode (minimum-degree
-    ordering on H + H^T, diagonal pivoting): measured fastest of SuperLU's orderings on these meshes."""
-    lu = spla.splu(H, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    return lu.solve(b)
 
 
 class BlockPattern:
@@ -99,15 +95,20 @@ class FullSpaceSolver:
         linear = settings.linear
         if linear == "auto":
             linear = "direct" if self.device.is_cpu else "cg"
-        if linear not in ("direct", "cg"):
-            raise ValueError(f"solver.linear = {linear!r}: expected 'direct', 'cg' or 'auto'")
-        self.linear = linear
+        if linear not in ("direct", "pardiso", "superlu", "cg"):
+            raise ValueError(f"solver.linear = {linear!r}: expected 'auto', 'direct', 'pardiso', 'superlu' or 'cg'")
         self.law = model.contact.law
         self.integrator = model.scenario.time.integrator
         self.h_eff = 0.0
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
         self.terms = terms_of(model)
+        if linear != "cg":
+            self.factoriser = make_factoriser(linear, self.pattern.offsets, self.pattern.cols, model.n)
+            linear = self.factoriser.name
+        self.linear = linear
+        self.elements = ElementRanges(model.tets.shape[0], d, thread_budget())
+        self.info = {"linear_solver": linear, "assembly_threads": self.elements.threads}
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
         self.tets = arr(model.tets.astype(np.int32), wp.vec4i)
         self.Dm_inv = arr(model.Dm_inv, wp.mat33d)
@@ -166,11 +167,9 @@ class FullSpaceSolver:
     # ----- linear solve and line search ---------------------------------------------------------------
     def _solve(self) -> tuple[np.ndarray, int]:
         """Newton direction dx = -H^-1 grad, (n, 3), and the linear iteration count (0 for direct)."""
-        if self.linear == "direct":
-            H = self.pattern.to_scipy(self.values.numpy())
-            g = self.grad.numpy().ravel()
-            dx = sparse_spd_solve(H, -g)
-            return dx.reshape(-1, 3), 0
+        if self.linear != "cg":
+            self.factoriser.factorize(self.values.numpy())
+            return self.factoriser.solve(-self.grad.numpy().ravel()).reshape(-1, 3), 0
         wp.launch(_negate_kernel, self.model.n, device=self.device, inputs=[self.grad, self.rhs])
         self.dx.zero_()
         M = wpl.preconditioner(self.A, "block_jacobi_direct")

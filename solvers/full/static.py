@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.full.solver import FullSpaceSolver, _StepProblem, sparse_spd_solve
+from solvers.full.solver import FullSpaceSolver, _StepProblem
+from solvers.linalg import sparse_spd_solve
 from solvers.newton import Direction, minimise
 
 

@@ -178,7 +178,7 @@ class Elasticity(BodyTerm):
         else:
             wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.grad])
             solver.elem_blocks.zero_()
-            wp.launch(K.elastic_hessian_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.elem_blocks])
+            solver.elements.launch(K.elastic_hessian_kernel, ins + [solver.elem_blocks], {1: 1, 2: 1, 3: 1, 7: 16})
             wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
                       inputs=[solver.elem_blocks, solver.blockmap, solver.values])
 

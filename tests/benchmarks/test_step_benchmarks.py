@@ -13,7 +13,7 @@ import pytest
 from bench.cli import resolve_scenario
 from scenarios.meshes import load_mesh
 from solvers.baselines import affine_basis, mass_orthonormalise
-from solvers.full.solver import FullSpaceSolver
+from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.licrom.cubature import uniform_cubature
 from solvers.licrom.reduced import ReducedSolver
 from solvers.model import State, build_model, initial_state
@@ -44,8 +44,11 @@ def reduced_basis(model, r: int) -> np.ndarray:
     return mass_orthonormalise(W, model.mass)
 
 
-def test_full_step(benchmark, scene):
-    model, solver, state = scene
+@pytest.mark.parametrize("linear", ["superlu", "direct"])
+def test_full_step(benchmark, scene, linear):
+    """The full-space step with SciPy's SuperLU (the original path) and the default direct solver (PARDISO)."""
+    model, _, state = scene
+    solver = FullSpaceSolver(model, settings=NewtonSettings(linear=linear))
     benchmark(lambda: solver.step(state, State(state.x, state.v, state.t), model.scenario.time.dt))
 
 
