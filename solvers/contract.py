@@ -3,8 +3,8 @@ Newton's `solver.step(state_in, state_out, dt)`).
 
 A solver is a `Solver` subclass that declares its `name`, its `parameters` (name -> default; a variant sets
 some of them) and the time `integrators` it implements (`scenarios.model.INTEGRATORS`; backward Euler unless it
-says more: a scene asking for another is skipped with the reason), and implements `setup(model)` (untimed: build what the run needs on this model) and
-`step(state_in, state_out, dt) -> StepStats`. Optional: `skip(model)` says why a scene cannot be run, `prepare`
+says more: a scene asking for another is skipped with the reason), and implements `setup(model)` (untimed: build
+what the run needs on this model) and `step(state_in, state_out, dt) -> StepStats`. Optional: `skip(model)` says why a scene cannot be run, `prepare`
 does offline work once per mesh shape (training, bases, cubature) writing its artefacts into the run's output
 folder, `initial(state)` adds a solver's own coordinates to the initial state, and `describe()` gives provenance
 for the run's stats. Registering the class (`solvers.registry.register`) is all the harness needs: the CLI, the

@@ -31,7 +31,7 @@ class State:
     t: float = 0.0
     q: np.ndarray | None = None
     qdot: np.ndarray | None = None
-    previous: "State | None" = None
+    previous: State | None = None
 
     def copy(self) -> "State":
         """A deep copy."""
@@ -39,7 +39,7 @@ class State:
         prev = None if self.previous is None else self.previous.without_history().copy()
         return State(self.x.copy(), self.v.copy(), self.t, cp(self.q), cp(self.qdot), prev)
 
-    def without_history(self) -> "State":
+    def without_history(self) -> State:
         """The same state (its arrays shared, not copied) without `previous`: what the next state keeps of it."""
         return State(self.x, self.v, self.t, self.q, self.qdot)
 

@@ -4,6 +4,7 @@ solver, their observed orders of convergence on a smooth contact-free motion, an
 from __future__ import annotations
 
 from dataclasses import replace
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -71,7 +72,7 @@ def spinning_block(integrator: str, dt: float, duration: float = 0.2) -> Scenari
 
 def observed_orders(finals: list[np.ndarray]) -> np.ndarray:
     """log2 of the ratios of successive differences between end states at dt, dt/2, dt/4, ... (RMS over vertices)."""
-    d = np.array([np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))) for a, b in zip(finals, finals[1:])])
+    d = np.array([np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))) for a, b in pairwise(finals)])
     return np.log2(d[:-1] / d[1:])
 
 

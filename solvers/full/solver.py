@@ -6,8 +6,8 @@ scenario's `time.integrator`) h is the effective step h_eff = 2/3 dt and x_hat =
 (`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`); an absent
 term launches no kernel. Newton directions come from the projected (PSD) Hessian, assembled into a fixed block-sparse
 pattern, and a backtracking (Armijo) line search on E, in the shared loop of `solvers.newton`; the barrier law also
-caps the step so that no contact point crosses the plane. Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal
-(h = h_eff: the velocity change of a step dx).
+caps the step so that no contact point crosses the plane. Convergence is measured in velocity units:
+|dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
 """
 
 from __future__ import annotations
