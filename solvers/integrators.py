@@ -12,8 +12,9 @@ step h_eff:
 - BDF2 at a constant step h: x_bar = 4/3 x^n - 1/3 x^{n-1}, v_bar = 4/3 v^n - 1/3 v^{n-1}, h_eff = 2/3 h (second
   order). It needs the state one step h before the step's start (`State.previous`); without one at that distance (the
   first step, or the first step after a change of step size) the step is backward Euler. So a step that
-  `solvers.simulate.advance` retries as two half steps restarts BDF2: the first half step is backward Euler, the
-  second is BDF2 at h/2 on the first, and the next full step is backward Euler again.
+  `solvers.simulate.advance` retries as two half steps after a full one restarts BDF2: the first half step is
+  backward Euler, the second is BDF2 at h/2 on the first, and the next full step is backward Euler again (a half
+  step that follows a half step keeps BDF2: its history is one half step back).
 
 The formulas hold for any coordinates: vertex positions (the full-space solver) or latent coordinates (the reduced
 solver, whose decoding is linear).
