@@ -11,7 +11,23 @@ from analysis.metrics import error_over_time
 from bench.gates import check, load_gates
 from bench.store import RunStore, load_run_info
 from reports.html import ScenarioRuns, comparison_section, write_report_html
+from reports.plots import ladder_mask
 from scenarios.suites import load_suite
+from solvers.trajectory import Trajectory
+
+
+def _truth(rows: pd.DataFrame, store: RunStore) -> tuple[str, Trajectory] | None:
+    """A scenario's ground-truth run, (label, trajectory): its ladder row `ladder-<truth_integrator>-<truth_depth>`
+    when the rows name one and the store holds it, else None."""
+    if not {"truth_integrator", "truth_depth", "run"} <= set(rows) or rows["truth_depth"].isna().all():
+        return None
+    first = rows[rows["truth_depth"].notna()].iloc[0]
+    variant = f"ladder-{first['truth_integrator']}-{int(first['truth_depth'])}"
+    match = rows[(rows["variant"] == variant) & rows["run"].notna()]
+    if match.empty or not store.done(match.iloc[0]["run"]):
+        return None
+    traj, _ = store.load(match.iloc[0]["run"])
+    return (f"truth ({match.iloc[0]['solver']}/{variant})", traj) if traj is not None else None
 
 
 def build_report(out: str | Path, gates_file: str | Path | None = None, max_scenarios: int = 4,
@@ -26,12 +42,14 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
     planes = {m.scenario.name: m.scenario.plane for m in suite.scenarios}
     store = RunStore(out / "runs")
     runs = []
+    ladder = ladder_mask(results)
     for scenario in list(dict.fromkeys(results["scenario"]))[:max_scenarios]:
-        rows = results[results["scenario"] == scenario]
+        rows = results[(results["scenario"] == scenario) & ~ladder]
         ref_rows = rows[rows["variant"] == "reference"]
         if ref_rows.empty or not store.done(ref_rows.iloc[0]["run"]):
             continue
         ref, _ = store.load(ref_rows.iloc[0]["run"])
+        truth = _truth(results[results["scenario"] == scenario], store)
         others = {}
         for _, row in rows[(rows["variant"] != "reference") & rows["run"].notna()].iterrows():
             remeshed = isinstance(row.get("remesh"), str) and row.get("remesh")
@@ -39,9 +57,14 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
                 traj, _ = store.load(row["run"])
                 if traj is not None:
                     others[f"{row['solver']}/{row['variant']}"] = traj
-        errors = {label: error_over_time(ref, traj) for label, traj in others.items()}
+        ref_label = str(ref_rows.iloc[0]["solver"])
+        against = truth[1] if truth is not None else ref
+        compared = ({ref_label: ref} if truth is not None else {}) | others
+        errors = {label: error_over_time(against, traj) for label, traj in compared.items()}
         runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, errors=errors,
-                                 plane=planes.get(scenario), reference_label=str(ref_rows.iloc[0]["solver"])))
+                                 plane=planes.get(scenario), reference_label=ref_label,
+                                 truth=truth[1] if truth is not None else None,
+                                 truth_label=truth[0] if truth is not None else "truth"))
     extra = []
     if baseline is not None:
         from bench.compare import compare_folders

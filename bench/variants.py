@@ -6,12 +6,30 @@ compared with the full-space run on that mesh. Reduced models train on the suite
 
 from __future__ import annotations
 
+import itertools
+
 from bench.runner import Variant
+from solvers.registry import get_solver
 
 EPOCHS = 30  # CI-sized default; `frictionbench run --epochs 1000` for the paper's figure
 POINTS = 128
 LICROM = {"r": 20, "epochs": EPOCHS, "points": POINTS, "affine": False, "cubature": "all", "scheme": "newton"}
 LICROM_AFFINE = {"r": 24, "epochs": EPOCHS, "points": POINTS, "affine": True, "cubature": "all", "scheme": "newton"}
+
+def grid(solver: str, label: str, base: dict | None = None, **axes: list) -> list[Variant]:
+    """The variants of `solver` over the cartesian product of `axes` (parameter name -> values) on top of the
+    parameters `base`, labelled `label.format(**point)` (e.g. grid("licrom", "r{r}", LICROM, r=[8, 16])). Every
+    axis and base parameter must be one the solver declares (`Solver.parameters`): an unknown one is an error
+    naming it and the declared ones."""
+    declared = get_solver(solver).parameters
+    unknown = sorted((set(axes) | set(base or {})) - set(declared))
+    if unknown:
+        raise ValueError(f"grid of solver {solver!r}: unknown parameter(s) {unknown}; it declares {sorted(declared)}")
+    names = list(axes)
+    return [Variant(solver, dict(base or {}) | dict(zip(names, values)),
+                    label=label.format(**dict(zip(names, values))))
+            for values in itertools.product(*(axes[n] for n in names))]
+
 
 #: The full-space solver at half the reference's time step: how far the reference itself is from time-converged
 #: (results rows get it as `ref_dt_change`, bench/runner.py `with_ref_dt_change`).
@@ -30,6 +48,8 @@ VARIANTS: dict[str, list[Variant]] = {
     "pod": [Variant("pod", {"r": 20}, label="r20"),
             Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt", model="r20")],
     "affine": [Variant("affine", {}, label="affine12")],
+    # LiCROM's rank swept (a grid over the solver's declared parameters; not in the default set)
+    "licrom-rank": grid("licrom", "affine-r{r}", LICROM_AFFINE, r=[12, 24, 48]),
     # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh
     # (the other mesh of the shape, carried onto the reference mesh for the comparison), the second-order integrator
     "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3"),

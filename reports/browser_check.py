@@ -1,5 +1,5 @@
 """Open a report in headless Chromium (Debian's, driven by playwright) and check it as a reader would see it:
-it loads with no console errors and no network requests, and its plots and renders are present.
+it loads with no console errors and no network requests, and its interactive plots are drawn.
 
     python -m reports.browser_check out/quick/report.html      # exit 1 with the problems listed
     python -m reports.browser_check --install                  # make sure a Chromium is there (Debian's package)
@@ -24,6 +24,8 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networki
 REQUIRED_SECTIONS = ("Summary", "Accuracy versus time", "Error over time", "Stick/slip agreement", "Remeshing",
                      "Stability")
 ENV_VAR = "FRICTIONBENCH_CHROMIUM"
+#: How long the figures may take to draw [ms] (plotly.js parses a few MB of script and data first).
+PLOT_TIMEOUT_MS = 60_000
 APT_PACKAGE = "chromium"
 HOW_TO_GET_ONE = (f"install Debian's package as root (`apt-get install {APT_PACKAGE}`, or "
                   f"`python -m reports.browser_check --install`), or set {ENV_VAR} to a Chromium executable")
@@ -75,6 +77,7 @@ def install_chromium() -> str:
 
 def check_report(path: str | Path, chromium: str | None = None) -> list[str]:
     """Problems found when loading the report (empty when it is fine)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import sync_playwright
 
     chromium = require_chromium(chromium)
@@ -88,14 +91,21 @@ def check_report(path: str | Path, chromium: str | None = None) -> list[str]:
         page.on("request", lambda r: requests.append(r.url))
         page.goto(url, wait_until="load")
         headings = page.locator("h2").all_inner_texts()
-        n_images = page.locator("img").count()
-        loaded = page.evaluate("Array.from(document.images).every(i => i.complete && i.naturalWidth > 0)")
+        n_plots = page.locator("div.plot").count()
+        drawn = 0
+        if n_plots:
+            try:  # the page's boot script marks the body once every figure is drawn
+                page.wait_for_function("document.body.dataset.plotsReady === 'yes'", timeout=PLOT_TIMEOUT_MS)
+                drawn = page.locator("div.plot.js-plotly-plot").count()
+            except PlaywrightTimeout:
+                drawn = -1
         browser.close()
     problems = [f"console error: {e}" for e in errors]
     problems += [f"network request: {u}" for u in requests if u != url and not u.startswith("data:")]
     problems += [f"missing section: {s}" for s in REQUIRED_SECTIONS if s not in headings]
-    if n_images < 2 or not loaded:
-        problems.append(f"plots missing or not loaded ({n_images} images, all loaded: {loaded})")
+    if n_plots == 0 or drawn != n_plots:
+        problems.append(f"plots missing or not drawn ({n_plots} plots, "
+                        f"{'not all drawn within the time limit' if drawn < 0 else f'{drawn} drawn'})")
     return problems
 
 

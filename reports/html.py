@@ -1,15 +1,14 @@
-"""One self-contained `report.html`: tables, plots and renders inline, no script, no external resource.
+"""One self-contained `report.html`: a headline first, then interactive plots, a 3D viewer per scenario and
+sortable, filterable tables; it opens offline (no request: plotly.js and the data are inline).
 
-Plots are PNG images embedded as base64 `data:` URIs, styling is one inline `<style>` block, so the file opens
-offline and can be mailed or archived alone. Sections (with these ids and headings):
-summary (gate verdicts, results), accuracy-vs-time, error-over-time, stick-slip, remeshing, stability, renders,
-any extra sections, provenance.
+Sections (with these ids and headings): summary (the headline: per solver family its best variant, the gates as a
+count with the failures), accuracy-vs-time (the frontier), ladders, error-over-time, viewer, time-convergence,
+stick-slip, remeshing, stability, gate-verdicts, results, any extra sections, provenance. Every text from the
+results is escaped: HTML-escaped in the page, JSON-escaped for `<script>` in the embedded figures.
 """
 
 from __future__ import annotations
 
-import base64
-import dataclasses
 import html
 import os
 from collections.abc import Mapping, Sequence
@@ -20,16 +19,14 @@ import numpy as np
 import pandas as pd
 
 from analysis.derived import remeshing_summary
-from analysis.metrics import align_frames
 from analysis.table import PROVENANCE_COLUMNS, results_frame, variant_labels
-from reports.plots import accuracy_vs_time_figure, error_over_time_figure, figure_png
-from reports.render import Renderer, render_surface, select_renderer, view_bounds
+from reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
+from reports.interactive import page_scripts, plot_div, plotly_version
+from reports.plots import error_over_time_figure, frontier_figure, ladder_figure
+from reports.viewer import DEFAULT_BUDGET, ViewerBudget, viewer_figure
 from scenarios.atomic import write_text_atomic
 from scenarios.model import Plane
 from solvers.trajectory import Trajectory
-
-REFERENCE_COLOR = "#4a7fb5"
-OTHER_COLOR = "#d9822b"
 
 CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.5em auto; max-width: 1200px;
@@ -42,19 +39,25 @@ th { background: #f0f0f0; } td.text { text-align: left; }
 td.pass { background: #d7f0d7; } td.fail { background: #f6d0d0; }
 .banner { padding: .6em 1em; border-radius: 4px; font-weight: 600; }
 .banner.pass { background: #d7f0d7; } .banner.fail { background: #f6d0d0; }
-img { max-width: 100%; } figure { margin: .5em 0; } figcaption { font-size: .85em; color: #555; }
 .note { color: #555; font-size: .9em; } .scroll { overflow-x: auto; }
+th[data-sort] { background: #dde6f0; } th { cursor: pointer; } input.filter { margin: .4em 0; width: 20em; }
+.headline { font-size: 1.05em; } .headline li { margin: .15em 0; } .plot { width: 100%; }
 """
+
+#: Failed gates listed in the headline (the rest are in the verdict table).
+MAX_LISTED = 12
 
 
 @dataclass(frozen=True)
 class ScenarioRuns:
-    """Trajectories of one scenario for the renders, and their errors for the error-over-time plot.
+    """Trajectories of one scenario for the 3D viewer, and their errors for the error-over-time plot.
 
     scenario: its name (a heading); reference: the full-space run; others: label -> run compared with it, each
     on the reference's mesh; errors: label -> (t (F,) [s], e (F,) [-]), the per-frame error of that run against
-    the reference (`analysis.metrics.error_over_time`); plane: drawn in the renders; reference_label: the
-    reference's label.
+    the truth when there is one, else against the reference (`analysis.metrics.error_over_time`); plane: drawn
+    in the viewer; reference_label: the reference's label; truth: the scenario's ground-truth run (None: none),
+    truth_label its label. The viewer shows the truth, the reference and, of the others, each solver family's
+    best variant among them (`reports.headline.ranked_variants`; the first three where none is ranked).
     """
 
     scenario: str
@@ -63,6 +66,8 @@ class ScenarioRuns:
     errors: Mapping[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     plane: Plane | None = None
     reference_label: str = "reference"
+    truth: Trajectory | None = None
+    truth_label: str = "truth"
 
 
 def _missing(value: object) -> bool:
@@ -101,15 +106,8 @@ def _table(frame: pd.DataFrame, verdicts: Sequence[str] = ()) -> str:
             cls = " ".join(c for c in classes if c)
             cells.append(f'<td class="{cls}">{_cell(value)}</td>' if cls else f"<td>{_cell(value)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
-    return (f'<div class="scroll"><table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n' + "\n".join(body)
-            + "\n</tbody>\n</table></div>")
-
-
-def _png(data: bytes, alt: str, caption: str = "") -> str:
-    """An embedded PNG (data URI) in a figure element."""
-    uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
-    cap = f"<figcaption>{html.escape(caption)}</figcaption>" if caption else ""
-    return f'<figure><img src="{uri}" alt="{html.escape(alt)}">{cap}</figure>'
+    return (f'<div class="scroll"><table class="sortable">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
+            + "\n".join(body) + "\n</tbody>\n</table></div>")
 
 
 def _note(text: str) -> str:
@@ -122,60 +120,127 @@ def _columns(frame: pd.DataFrame, wanted: Sequence[str]) -> pd.DataFrame:
     return frame[[c for c in wanted if c in frame.columns]]
 
 
-def _as_dict(verdict: object) -> dict[str, object]:
-    """A gate verdict (mapping, dataclass or plain object) as a dict."""
-    if isinstance(verdict, Mapping):
-        return dict(verdict)
-    if dataclasses.is_dataclass(verdict) and not isinstance(verdict, type):
-        return dataclasses.asdict(verdict)
-    return dict(vars(verdict))
-
-
 def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
-    """Gate banner and verdicts, then the key columns of every results row."""
-    parts = []
-    failed_runs = int((frame["status"].fillna("ok") != "ok").sum()) if "status" in frame else 0
-    if gates:
-        every = pd.DataFrame([_as_dict(g) for g in gates])
-        advisory = every["advisory"].fillna(False).astype(bool) if "advisory" in every else pd.Series(False, every.index)
-        verdicts = every[~advisory]
-        n_pass = int(verdicts["passed"].astype(bool).sum())
-        ok = n_pass == len(verdicts)
-        parts.append(f'<p class="banner {"pass" if ok else "fail"}">Gates: {n_pass} of {len(verdicts)} passed'
-                     f"{'' if ok else f', {len(verdicts) - n_pass} failed'}.</p>")
-        if advisory.any():
-            n_adv = int(every[advisory]["passed"].astype(bool).sum())
-            parts.append(_note(f"Advisory checks (judged, not enforced; see Stability): {n_adv} of "
-                               f"{int(advisory.sum())} passed."))
-        shown = verdicts if len(verdicts) <= 100 else verdicts[~verdicts["passed"].astype(bool)]
-        caption = "" if shown is verdicts else _note(f"{len(verdicts)} verdicts; the failed ones are listed.")
-        parts.append("<h3>Gate verdicts</h3>" + caption + _table(shown, verdicts=["passed"]))
+    """The headline: what accuracy is measured against, the gates as a count with the failures listed, the
+    failed runs, and per solver family its best variant (`reports.headline.headline_table`)."""
+    parts = [f'<p class="headline">{html.escape(truth_summary(frame))}</p>', '<ul class="headline">']
+    verdicts = verdict_frame(gates)
+    if verdicts.empty:
+        parts.append("<li>No gates were evaluated for these results.</li>")
     else:
-        parts.append(_note("No gates were evaluated for these results."))
-    parts.append(_note(f"{len(frame)} result rows, {failed_runs} failed runs."))
-    summary = _columns(frame, ["suite", "scenario", "split", "mesh", "solver", "variant", "status", "pos_rmse_rel",
-                               "proj_rmse_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "stick_agree",
-                               "step_ms_median", "speedup"])
-    parts.append("<h3>Results</h3>" + _table(summary, verdicts=["status", "stick_agree"]))
+        advisory = (verdicts["advisory"].fillna(False).astype(bool) if "advisory" in verdicts
+                    else pd.Series(False, index=verdicts.index))
+        binding = verdicts[~advisory]
+        counts = binding["status"].value_counts()
+        n_pass, n_fail, n_und = (int(counts.get(k, 0)) for k in ("passed", "failed", "undecidable"))
+        ok = n_fail == 0
+        undecidable = f", {n_und} undecidable (threshold below the truth's error)" if n_und else ""
+        parts.append(f'<li><span class="banner {"pass" if ok else "fail"}">'
+                     + html.escape(f"Gates: {n_pass} of {len(binding)} passed"
+                                   f"{'' if ok else f', {n_fail} failed'}{undecidable}.") + "</span></li>")
+        failed = binding[binding["status"] == "failed"]
+        if not failed.empty:
+            items = [html.escape(", ".join(str(r[k]) for k in ("gate", "scenario", "variant", "metric")
+                                           if k in r and not _missing(r[k]))
+                                 + (f": {_cell_text(r['value'])} (limit {r['limit']})"
+                                    if "value" in r and "limit" in r else ""))
+                     for _, r in failed.head(MAX_LISTED).iterrows()]
+            more = (f"<li>and {len(failed) - MAX_LISTED} more (see Gate verdicts)</li>"
+                    if len(failed) > MAX_LISTED else "")
+            parts.append("<li>Failed gates:<ul>" + "".join(f"<li>{i}</li>" for i in items) + more + "</ul></li>")
+        if advisory.any():
+            adv = verdicts[advisory]
+            parts.append(f"<li>Advisory checks (judged, not enforced; see Stability): "
+                         f"{int((adv['status'] == 'passed').sum())} of {len(adv)} passed.</li>")
+    failed_runs = int((frame["status"].fillna("ok") != "ok").sum()) if "status" in frame else 0
+    parts.append(f"<li>{len(frame)} result rows, {failed_runs} failed runs.</li></ul>")
+    table = headline_table(frame, gates)
+    if table.empty:
+        parts.append(_note("No solver rows in these results."))
+    else:
+        parts.append(_note("Per solver family, its best variant (lowest median error over its finished runs); "
+                           "stable runs: finished with finite positions, every step converged and every "
+                           "stability check of its case passed.") + _table(table))
     return "\n".join(parts)
 
 
-def _accuracy_vs_time(frame: pd.DataFrame) -> str:
-    """The Pareto plot against step time, or against speed-up where no step times were measured."""
-    step = pd.to_numeric(frame.get("step_ms_median", pd.Series(dtype=float)), errors="coerce")
-    x, higher = ("step_ms_median", False) if (step > 0).any() else ("speedup", True)
-    fig = accuracy_vs_time_figure(frame, x=x, y="pos_rmse_rel", x_higher_is_better=higher)
-    return (_note("One point per solver variant (median over its scenarios); the red line is the Pareto front: "
-                  "no other variant is both faster and more accurate.")
-            + _png(figure_png(fig), "accuracy versus time", f"pos_rmse_rel versus {x}"))
+def _cell_text(value: object) -> str:
+    """A value as plain text: floats to 3 significant digits."""
+    return f"{value:.3g}" if isinstance(value, (float, np.floating)) else str(value)
+
+
+def _verdicts(gates: Sequence[object]) -> str:
+    """Every gate verdict, filterable and sortable."""
+    verdicts = verdict_frame(gates)
+    if verdicts.empty:
+        return _note("No gates were evaluated for these results.")
+    return _table(verdicts, verdicts=["passed", "status"])
+
+
+def _results(frame: pd.DataFrame) -> str:
+    """The key columns of every results row."""
+    summary = _columns(frame, ["suite", "scenario", "split", "mesh", "solver", "variant", "ladder", "integrator",
+                               "dt", "status", "failure", "err_truth", "pos_rmse_rel", "proj_rmse_rel",
+                               "com_err_rel", "final_err_rel", "slide_err_rel", "stick_agree", "wall_s_per_sim_s",
+                               "step_ms_median", "speedup", "speedup_equal_accuracy", "frontier_note",
+                               "truth_certified", "truth_err_est"])
+    return _table(summary, verdicts=["status", "stick_agree"])
+
+
+def _frontier(frame: pd.DataFrame) -> str:
+    """The interactive frontier: error against cost per run, the ladders as curves, the Pareto front."""
+    return (_note("One point per run (hover: variant, scenario, values; click a legend entry to hide or show "
+                  "it). The dotted red line is the Pareto front of the variants' medians over scenarios: no other "
+                  "variant is both cheaper and more accurate. The grey curves are the full-space ladders "
+                  "(halved time steps), per integrator.")
+            + plot_div(frontier_figure(frame), "frontier", 480))
+
+
+def _ladders(frame: pd.DataFrame) -> str:
+    """The ground-truth ladders' convergence, or why there is none."""
+    figure = ladder_figure(frame)
+    if figure is None:
+        return _note("No ground-truth ladder in this result set.")
+    return (_note("Each ladder: the reference solver at halved time steps; err_truth of each level against the "
+                  "scenario's truth, with the truth's own error estimate.")
+            + plot_div(figure, "ladders-plot", 420))
 
 
 def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:
-    """One error-over-time plot per scenario."""
+    """One interactive error-over-time plot per scenario."""
     parts = []
-    for run in runs:
-        fig = error_over_time_figure(run.errors, f"{run.scenario}: error against {run.reference_label}")
-        parts.append(_png(figure_png(fig), f"error over time, {run.scenario}", run.scenario))
+    for n, run in enumerate(runs):
+        against = run.truth_label if run.truth is not None else run.reference_label
+        fig = error_over_time_figure(run.errors, f"{run.scenario}: error against {against}")
+        parts.append(plot_div(fig, f"error-{n}", 340))
+    return "\n".join(parts)
+
+
+def _viewers(runs: Sequence[ScenarioRuns], frame: pd.DataFrame, budget: ViewerBudget) -> str:
+    """Per scenario, the animated 3D viewer of its truth, reference and each family's best variant."""
+    ranked = ranked_variants(frame)
+    parts = [_note(f"Each scenario's runs side by side, coloured by the distance of each surface point to the "
+                   f"first one (the truth, else the reference), as a fraction of the body's size L. Play/Pause "
+                   f"and the slider step through time; drag to turn, scroll to zoom. Surfaces decimated to at "
+                   f"most {budget.max_triangles} triangles, at most {budget.max_frames} frames.")]
+    scenarios = frame["scenario"].dropna().astype(str).unique() if "scenario" in frame else []
+    if len(runs) < len(scenarios):
+        parts.append(_note(f"Viewers for {len(runs)} of the {len(scenarios)} scenarios (those whose trajectories "
+                           "were given to the report), to keep the page small."))
+    for n, run in enumerate(runs):
+        chosen = {}
+        for labels in ranked.values():  # each family's best variant among this scenario's runs
+            label = next((label for label in labels if label in run.others), None)
+            if label is not None:
+                chosen[label] = run.others[label]
+        chosen = chosen or dict(list(run.others.items())[:3])
+        shown = ([(run.truth_label, run.truth)] if run.truth is not None else [])
+        shown += [(run.reference_label, run.reference), *chosen.items()]
+        figure, notes = viewer_figure(shown, run.plane, budget, distance_to=shown[0][0])
+        parts.append(f"<h3>{html.escape(run.scenario)}</h3>")
+        parts += [_note(note) for note in notes]
+        parts.append(plot_div(figure, f"viewer-{n}", 520) if figure is not None
+                     else _note("Nothing to show (no finite frames)."))
     return "\n".join(parts)
 
 
@@ -242,14 +307,21 @@ def _stability(frame: pd.DataFrame, gates: Sequence[object]) -> str:
 
 def _stability_matrix(gates: Sequence[object]) -> str:
     """Case x solver variant: `pass`, or the metrics whose gates failed (from the gate verdicts)."""
-    verdicts = pd.DataFrame([_as_dict(v) for v in gates])
+    verdicts = verdict_frame(gates)
     if verdicts.empty or not {"scenario", "variant", "metric"} <= set(verdicts):
         return _note("No gates apply to this suite, so no case is judged here.")
     verdicts = verdicts[verdicts["scenario"] != "(none)"]
-    failed = (verdicts[~verdicts["passed"].astype(bool)].groupby(["scenario", "variant"])["metric"]
-              .apply(lambda m: ", ".join(sorted(set(m)))))
-    cells = verdicts.groupby(["scenario", "variant"])["passed"].all().map({True: "pass", False: "fail"})
-    cells = cells.where(cells == "pass", "fail: " + failed.reindex(cells.index).fillna(""))
+    keys = ["scenario", "variant"]
+
+    def metrics_with(status: str) -> pd.Series:
+        """Per case, the metrics whose verdicts have this status (comma-separated)."""
+        return (verdicts[verdicts["status"] == status].groupby(keys)["metric"]
+                .apply(lambda m: ", ".join(sorted(set(m)))))
+
+    cells = pd.Series("pass", index=verdicts.groupby(keys).size().index)
+    undecidable, failed = metrics_with("undecidable"), metrics_with("failed")
+    cells.loc[undecidable.index] = "undecidable: " + undecidable
+    cells.loc[failed.index] = "fail: " + failed
     matrix = cells.unstack("variant").fillna("")
     matrix = matrix[sorted(matrix.columns, key=lambda c: (not str(c).startswith("full/"), str(c)))]  # full first
     counts = (matrix == "pass").sum().astype(str) + " / " + (matrix != "").sum().astype(str)
@@ -264,7 +336,8 @@ def _stability_matrix(gates: Sequence[object]) -> str:
             tds.append(f'<td class="{cls}">{html.escape(v)}</td>')
         body.append("<tr>" + "".join(tds) + "</tr>")
     return (_note("Cases against the gates and advisory checks (gates.toml) per solver variant and contact law: "
-                  "pass, or the metrics that failed.")
+                  "pass, or the metrics that failed (or, where none failed, those undecidable: an accuracy "
+                  "threshold below 3x an uncertified truth's error estimate).")
             + f'<div class="scroll"><table class="stability-matrix">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
             + "\n".join(body) + "\n</tbody>\n</table></div>")
 
@@ -292,53 +365,14 @@ def _contact_laws(frame: pd.DataFrame) -> str:
             + _table(pd.DataFrame(rows)))
 
 
-def _placeholder_cell(text: str) -> str:
-    """A table cell that says why a picture is missing."""
-    return f'<td class="text fail">{html.escape(text)}</td>'
-
-
-def _renders(runs: Sequence[ScenarioRuns], renderer: Renderer, key_frames: int) -> str:
-    """Per scenario, a table of pictures: one row per key frame, the reference then the other runs."""
-    parts = [_note(f"Rendered with {renderer.detail}. Same camera for every picture of a scenario.")]
-    for run in runs:
-        ref = run.reference
-        keys = np.unique(np.round(np.linspace(0, ref.n_frames - 1, max(key_frames, 1))).astype(int))
-        bounds = view_bounds(ref.x)
-        columns = {run.reference_label: (ref, REFERENCE_COLOR), **{k: (v, OTHER_COLOR) for k, v in run.others.items()}}
-        head = "<th>t [s]</th>" + "".join(f"<th>{html.escape(label)}</th>" for label in columns)
-        body = []
-        for k in keys:
-            cells = [f"<td>{ref.t[k]:.3g}</td>"]
-            for traj, color in columns.values():
-                cells.append(_render_cell(traj, ref.t[k], bounds, run.plane, renderer, color))
-            body.append("<tr>" + "".join(cells) + "</tr>")
-        parts.append(f'<h3>{html.escape(run.scenario)}</h3>\n<div class="scroll"><table>\n'
-                     f"<thead><tr>{head}</tr></thead>\n<tbody>\n" + "\n".join(body) + "\n</tbody>\n</table></div>")
-    return "\n".join(parts)
-
-
-def _render_cell(traj: Trajectory, t: float, bounds: np.ndarray, plane: Plane | None, renderer: Renderer,
-                 color: str) -> str:
-    """A table cell with the render of traj's frame at time t, or why there is none."""
-    try:
-        _, (k,) = align_frames(np.array([t]), traj.t)
-    except ValueError:
-        return _placeholder_cell(f"no frame at t = {t:.3g} s")
-    if not np.isfinite(traj.x[k]).all():
-        return _placeholder_cell("non-finite positions")
-    png = render_surface(traj.x[k], traj.surface, bounds=bounds, plane=plane, renderer=renderer, color=color)
-    return "<td>" + _png(png, f"frame at t = {t:.3g} s") + "</td>"
-
-
-def _provenance(frame: pd.DataFrame, renderer: Renderer | None) -> str:
-    """The distinct provenance values of the results, and the renderer that made the pictures."""
+def _provenance(frame: pd.DataFrame) -> str:
+    """The distinct provenance values of the results, and the plotting library that draws the figures."""
     rows = []
     for col in [c for c in PROVENANCE_COLUMNS if c in frame] + [c for c in frame if c.endswith("_version")
                                                                   and c not in PROVENANCE_COLUMNS]:
         values = [str(v) for v in frame[col].dropna().unique() if str(v) != ""]
         rows.append({"field": col, "value": ", ".join(values)})
-    if renderer is not None:
-        rows.append({"field": "renderer", "value": renderer.detail})
+    rows.append({"field": "plots", "value": f"plotly {plotly_version()} (plotly.js inline)"})
     return _table(pd.DataFrame(rows, columns=["field", "value"])) if rows else _note("No provenance recorded.")
 
 
@@ -368,31 +402,33 @@ def comparison_section(comparison: pd.DataFrame, baseline: str, max_rows: int = 
 def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], out_dir: str | os.PathLike, *,
                       gates: Sequence[object] = (), runs: Sequence[ScenarioRuns] = (),
                       extra_sections: Sequence[tuple[str, str]] = (), title: str = "frictionbench report",
-                      renderer: str = "auto", key_frames: int = 3) -> Path:
+                      viewer: ViewerBudget = DEFAULT_BUDGET) -> Path:
     """Write `out_dir/report.html` atomically and return its path.
 
     results: the results table (a DataFrame as read from results.csv, or its rows).
-    gates: gate verdicts, each a mapping, dataclass or object with at least a boolean `passed`; every field
-        becomes a column of the verdict table.
-    runs: trajectories for the error-over-time plots and the renders (none: those sections say so).
+    gates: gate verdicts, each a mapping, dataclass or object with at least a boolean `passed` (and optionally a
+        `status`: passed, failed or undecidable); every field becomes a column of the verdict table.
+    runs: trajectories for the error-over-time plots and the 3D viewers (none: those sections say so).
     extra_sections: (heading, HTML fragment) pairs appended before the provenance; the fragments are inserted
         as given, so they must be trusted and self-contained.
-    renderer: `auto`, `vtk` or `matplotlib` (see `reports.render.select_renderer`); key_frames: renders per run.
+    viewer: the 3D viewers' frame and triangle budget.
     """
     frame = results.copy() if isinstance(results, pd.DataFrame) else results_frame(results)
-    chosen = select_renderer(renderer) if runs else None
     no_runs = _note("No trajectories were given to the report.")
     sections = [
         ("summary", "Summary", _summary(frame, gates)),
-        ("accuracy-vs-time", "Accuracy versus time", _accuracy_vs_time(frame)),
+        ("accuracy-vs-time", "Accuracy versus time", _frontier(frame)),
+        ("ladders", "Ground-truth ladders", _ladders(frame)),
         ("error-over-time", "Error over time", _error_over_time(runs) if runs else no_runs),
+        ("viewer", "3D viewer", _viewers(runs, frame, viewer) if runs else no_runs),
         ("time-convergence", "Reference time-step convergence", _time_convergence(frame)),
         ("stick-slip", "Stick/slip agreement", _stick_slip(frame)),
         ("remeshing", "Remeshing", _remeshing(frame)),
         ("stability", "Stability", _stability(frame, gates)),
-        ("renders", "Renders: full versus reduced", _renders(runs, chosen, key_frames) if chosen else no_runs),
+        ("gate-verdicts", "Gate verdicts", _verdicts(gates)),
+        ("results", "Results", _results(frame)),
         *((f"extra-{i}", heading, fragment) for i, (heading, fragment) in enumerate(extra_sections)),
-        ("provenance", "Provenance", _provenance(frame, chosen)),
+        ("provenance", "Provenance", _provenance(frame)),
     ]
     nav = "".join(f'<li><a href="#{sid}">{html.escape(heading)}</a></li>' for sid, heading, _ in sections)
     body = "\n".join(f'<section id="{sid}">\n<h2>{html.escape(heading)}</h2>\n{content}\n</section>'
@@ -400,5 +436,6 @@ def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], ou
     page = (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">\n'
             f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
-            f"<h1>{html.escape(title)}</h1>\n<nav><ul>{nav}</ul></nav>\n{body}\n</body>\n</html>\n")
+            f"<h1>{html.escape(title)}</h1>\n<nav><ul>{nav}</ul></nav>\n{body}\n{page_scripts()}\n</body>\n"
+            "</html>\n")
     return write_text_atomic(Path(out_dir) / "report.html", page)

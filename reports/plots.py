@@ -1,24 +1,65 @@
-"""Report figures drawn with matplotlib's object-oriented API (no pyplot, no display), returned as PNG bytes."""
+"""Report figures as plotly figure dicts (data, layout, frames), drawn in the page by the embedded plotly.js.
+
+Suite-provided texts (scenario and variant names) are HTML-escaped here (`reports.interactive.text`), since plotly
+renders a subset of HTML in names and hover texts.
+"""
 
 from __future__ import annotations
 
-import io
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from matplotlib.axes import Axes
-from matplotlib.figure import Figure
-from matplotlib.ticker import NullFormatter
 
 from analysis.table import variant_labels
+from reports.interactive import text
+
+#: Colours of the traces, in order (plotly's default cycle, spelled out so the legend and the viewer agree).
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+           "#17becf")
+
+#: Marker symbols, one per solver family in the frontier (colours repeat after ten variants, symbols tell apart).
+SYMBOLS = ("circle", "square", "diamond", "triangle-up", "cross", "x", "star", "hexagon", "pentagon",
+           "triangle-down")
 
 
-def figure_png(fig: Figure, dpi: int = 100) -> bytes:
-    """The figure as PNG bytes (Agg, cropped to its content)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    return buf.getvalue()
+@dataclass(frozen=True)
+class AccuracyColumns:
+    """Which result columns measure accuracy and cost: against the ground truth when the results have one.
+
+    error: `err_truth`, else `pos_rmse_rel` (against the same-dt reference); cost: `wall_s_per_sim_s` (stepping
+    wall time per simulated second), else `step_ms_median`; speedup: `speedup_equal_accuracy`, else the step-time
+    `speedup`; truth: whether err_truth has values.
+    """
+
+    error: str
+    cost: str
+    speedup: str
+    truth: bool
+
+
+def numeric_column(frame: pd.DataFrame, column: str) -> pd.Series:
+    """The column as floats (NaN where missing or not a number; all NaN when the column is absent)."""
+    if column not in frame:
+        return pd.Series(np.nan, index=frame.index, dtype=float)
+    return pd.to_numeric(frame[column], errors="coerce").astype(float)
+
+
+def accuracy_columns(frame: pd.DataFrame) -> AccuracyColumns:
+    """The accuracy and cost columns of these results (see `AccuracyColumns`)."""
+    truth = bool(np.isfinite(numeric_column(frame, "err_truth")).any())
+    wall = numeric_column(frame, "wall_s_per_sim_s")
+    return AccuracyColumns(error="err_truth" if truth else "pos_rmse_rel",
+                           cost="wall_s_per_sim_s" if bool((wall > 0).any()) else "step_ms_median",
+                           speedup="speedup_equal_accuracy" if truth else "speedup", truth=truth)
+
+
+def ladder_mask(frame: pd.DataFrame) -> pd.Series:
+    """True on the rows of a ground-truth ladder (a non-empty `ladder` column)."""
+    if "ladder" not in frame:
+        return pd.Series(False, index=frame.index)
+    return frame["ladder"].fillna("").astype(str).str.strip() != ""
 
 
 def pareto_front(x: np.ndarray, y: np.ndarray, x_higher_is_better: bool = False) -> np.ndarray:
@@ -40,64 +81,112 @@ def pareto_front(x: np.ndarray, y: np.ndarray, x_higher_is_better: bool = False)
     return np.array(front, dtype=int)
 
 
-def _empty(fig: Figure, ax: Axes, message: str) -> Figure:
-    """The figure with only `message` in it, for data that is not there."""
-    ax.text(0.5, 0.5, message, ha="center", va="center", transform=ax.transAxes)
-    ax.set_axis_off()
-    return fig
+def _log_axis(title: str) -> dict[str, object]:
+    return {"type": "log", "title": {"text": text(title)}, "exponentformat": "power", "gridcolor": "#e4e4e4"}
 
 
-def accuracy_vs_time_figure(results: pd.DataFrame, x: str = "step_ms_median", y: str = "pos_rmse_rel",
-                            x_higher_is_better: bool = False) -> Figure:
-    """Accuracy versus time: one point per solver variant, log axes, the Pareto front as a step line.
-
-    Each point is the median over the variant's rows (scenarios) of columns x and y. A y of exactly 0 (the
-    reference compared with itself) cannot sit on a log axis: it is drawn at a floor a decade below the smallest
-    positive y and labelled `= 0`.
-    """
-    fig = Figure(figsize=(7.0, 4.5))
-    ax = fig.subplots()
-    if not {"solver", x, y} <= set(results.columns):
-        return _empty(fig, ax, f"no columns solver, {x} and {y} in the results")
-    data = pd.DataFrame({"label": variant_labels(results), "x": pd.to_numeric(results[x], errors="coerce"),
-                         "y": pd.to_numeric(results[y], errors="coerce")})
-    points = data.groupby("label", sort=True)[["x", "y"]].median().dropna()
-    points = points[(points["x"] > 0) & (points["y"] >= 0)]
-    if points.empty:
-        return _empty(fig, ax, f"no rows with both {x} and {y}")
-    positive = points["y"][points["y"] > 0]
-    floor = positive.min() / 10.0 if not positive.empty else 1e-6
-    yy = points["y"].where(points["y"] > 0, floor).to_numpy()
-    xx = points["x"].to_numpy()
-    front = pareto_front(xx, points["y"].to_numpy(), x_higher_is_better)
-    ax.plot(xx[front], yy[front], drawstyle="steps-post", color="tab:red", lw=1.2, zorder=1, label="Pareto front")
-    ax.scatter(xx, yy, s=36, color="tab:blue", zorder=2)
-    for xi, yi, name, exact in zip(xx, yy, points.index, points["y"].to_numpy() == 0):
-        ax.annotate(f"{name} (= 0)" if exact else name, (xi, yi), textcoords="offset points", xytext=(5, 4),
-                    fontsize=8)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.xaxis.set_minor_formatter(NullFormatter())  # minor labels of a narrow log range overlap
-    ax.set_xlabel(f"{x} ({'higher' if x_higher_is_better else 'lower'} is better)")
-    ax.set_ylabel(f"{y} (median over scenarios)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    return fig
+def _layout(title: str, x_title: str, y_title: str) -> dict[str, object]:
+    return {"title": {"text": text(title), "font": {"size": 14}}, "xaxis": _log_axis(x_title),
+            "yaxis": _log_axis(y_title), "hovermode": "closest", "margin": {"l": 70, "r": 20, "t": 40, "b": 55},
+            "legend": {"title": {"text": "click to hide / show"}}, "plot_bgcolor": "white"}
 
 
-def error_over_time_figure(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], title: str) -> Figure:
-    """Per-frame relative error e(t) (log y) of several solvers in one scenario; curves: label -> (t [s], e)."""
-    fig = Figure(figsize=(7.0, 3.6))
-    ax = fig.subplots()
-    if not any(np.any(np.asarray(e) > 0) for _, e in curves.values()):
-        return _empty(fig, ax, f"{title}: no positive error to plot")
-    for name, (t, e) in curves.items():
+def _hover(label: str, scenario: object, values: Mapping[str, float]) -> str:
+    lines = [f"<b>{text(label)}</b>", f"scenario: {text(scenario)}"]
+    lines += [f"{text(k)}: {v:.3g}" for k, v in values.items() if np.isfinite(v)]
+    return "<br>".join(lines)
+
+
+def frontier_figure(frame: pd.DataFrame) -> dict[str, object]:
+    """Error against cost, log axes: one point per run (a trace per solver variant, hover: variant, scenario,
+    values), the ground-truth ladders as curves per integrator and scenario, and the Pareto front of the variants'
+    medians. Columns from `accuracy_columns`; rows with a zero or missing error or cost are left out (the reference
+    against itself, the truth against itself)."""
+    cols = accuracy_columns(frame)
+    f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
+                      "family": frame["solver"].astype(str) if "solver" in frame else "",
+                      "x": numeric_column(frame, cols.cost), "y": numeric_column(frame, cols.error),
+                      "dt": numeric_column(frame, "dt"), "ladder": ladder_mask(frame)})
+    f["integrator"] = frame["ladder"].fillna("").astype(str) if "ladder" in frame else ""
+    f = f[(f["x"] > 0) & (f["y"] > 0)]
+    data: list[dict[str, object]] = []
+    runs = f[~f["ladder"]]
+    families = sorted(runs["family"].unique())
+    for n, (label, g) in enumerate(runs.groupby("label", sort=True)):
+        symbol = SYMBOLS[families.index(g["family"].iloc[0]) % len(SYMBOLS)]
+        data.append({"type": "scatter", "mode": "markers", "name": text(label), "x": g["x"].tolist(),
+                     "y": g["y"].tolist(), "marker": {"size": 9, "color": PALETTE[n % len(PALETTE)],
+                                                      "symbol": symbol},
+                     "hovertext": [_hover(label, s, {cols.error: y, cols.cost: x})
+                                   for s, x, y in zip(g["scenario"], g["x"], g["y"])],
+                     "hoverinfo": "text"})
+    medians = runs.groupby("label", sort=True)[["x", "y"]].median()
+    front = pareto_front(medians["x"].to_numpy(), medians["y"].to_numpy())
+    if len(front):
+        data.append({"type": "scatter", "mode": "lines", "name": "Pareto front (medians)",
+                     "x": medians["x"].iloc[front].tolist(), "y": medians["y"].iloc[front].tolist(),
+                     "line": {"shape": "hv", "color": "#c0392b", "dash": "dot", "width": 1.5},
+                     "hoverinfo": "skip"})  # its corners are medians: the runs' points carry the hover
+    for n, (integrator, g) in enumerate(f[f["ladder"]].groupby("integrator", sort=True)):
+        for m, (scenario, curve) in enumerate(g.groupby("scenario", sort=True)):
+            curve = curve.sort_values("x")
+            data.append({"type": "scatter", "mode": "lines+markers", "name": text(f"ladder {integrator}"),
+                         "legendgroup": text(f"ladder {integrator}"), "showlegend": m == 0,
+                         "x": curve["x"].tolist(), "y": curve["y"].tolist(),
+                         "line": {"color": "#555555", "width": 1, "dash": ("solid", "dash", "dot")[n % 3]},
+                         "marker": {"size": 5, "symbol": "diamond"},
+                         "hovertext": [_hover(label, scenario, {cols.error: y, cols.cost: x, "dt": dt})
+                                       for label, x, y, dt in zip(curve["label"], curve["x"], curve["y"],
+                                                                  curve["dt"])],
+                         "hoverinfo": "text"})
+    against = "the ground truth" if cols.truth else "the same-dt reference"
+    return {"data": data, "layout": _layout(f"{cols.error} (against {against}) versus {cols.cost}",
+                                            f"{cols.cost} (lower is cheaper)", f"{cols.error} (lower is better)")}
+
+
+def error_over_time_figure(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], title: str) -> dict[str, object]:
+    """Per-frame relative error e(t) (log y) of several runs in one scenario; curves: label -> (t (F,) [s],
+    e (F,) [-]). Zero errors (a run against itself) are left out of the log axis."""
+    data = []
+    for n, (label, (t, e)) in enumerate(curves.items()):
         e = np.asarray(e, dtype=float)
-        ax.plot(t, np.where(e > 0, e, np.nan), label=name, lw=1.4)
-    ax.set_yscale("log")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("RMS position error / L")
-    ax.set_title(title, fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    return fig
+        keep = np.isfinite(e) & (e > 0)
+        data.append({"type": "scatter", "mode": "lines", "name": text(label), "x": np.asarray(t)[keep].tolist(),
+                     "y": e[keep].tolist(), "line": {"color": PALETTE[n % len(PALETTE)], "width": 1.6},
+                     "hovertemplate": f"{text(label)}<br>t = %{{x:.3g}} s<br>e = %{{y:.3g}}<extra></extra>"})
+    layout = _layout(title, "t [s]", "RMS position error / L")
+    layout["xaxis"] = {"title": {"text": "t [s]"}, "gridcolor": "#e4e4e4"}
+    return {"data": data, "layout": layout}
+
+
+def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
+    """The ground-truth ladders: err_truth against the time step (log-log), a curve per integrator and scenario,
+    beside the truth's own error estimate per scenario (a dashed level). None when there are no ladder rows."""
+    ladder = ladder_mask(frame)
+    if not ladder.any():
+        return None
+    f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
+                      "integrator": frame["ladder"].fillna("").astype(str), "dt": numeric_column(frame, "dt"),
+                      "y": numeric_column(frame, "err_truth"), "est": numeric_column(frame, "truth_err_est")})[ladder]
+    data: list[dict[str, object]] = []
+    scenarios = sorted(f["scenario"].astype(str).unique())
+    integrators = sorted(f["integrator"].unique())
+    for (scenario, integrator), g in f.groupby(["scenario", "integrator"], sort=True):
+        g = g[(g["dt"] > 0) & (g["y"] > 0)].sort_values("dt")
+        color = PALETTE[scenarios.index(str(scenario)) % len(PALETTE)]
+        dash = ("solid", "dash", "dot")[integrators.index(integrator) % 3]
+        data.append({"type": "scatter", "mode": "lines+markers", "name": text(f"{scenario}: {integrator}"),
+                     "x": g["dt"].tolist(), "y": g["y"].tolist(), "line": {"color": color, "dash": dash},
+                     "hovertext": [_hover(label, scenario, {"dt": dt, "err_truth": y})
+                                   for label, dt, y in zip(g["label"], g["dt"], g["y"])], "hoverinfo": "text"})
+    for scenario, g in f.groupby("scenario", sort=True):
+        est = g["est"].dropna()
+        dts = g["dt"][g["dt"] > 0]
+        if est.empty or dts.empty or not est.iloc[0] > 0:
+            continue
+        data.append({"type": "scatter", "mode": "lines", "name": text(f"{scenario}: truth's error estimate"),
+                     "x": [dts.min(), dts.max()], "y": [est.iloc[0]] * 2,
+                     "line": {"color": PALETTE[scenarios.index(str(scenario)) % len(PALETTE)], "dash": "longdashdot",
+                              "width": 1}, "hoverinfo": "name"})
+    return {"data": data, "layout": _layout("Ground-truth ladders: error against the truth per time step",
+                                            "dt [s]", "err_truth")}

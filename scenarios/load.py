@@ -19,7 +19,9 @@ optional and defaults to the dataclass default unless said otherwise below):
     #                                # for `scenario_from_dict`); stored resolved to an absolute path
     scale = 1.0                      # > 0
 
-    [material]    density > 0 [kg/m^3], youngs_modulus > 0 [Pa], -1 < poisson_ratio < 0.5
+    [material]    density > 0 [kg/m^3], youngs_modulus > 0 [Pa], -1 < poisson_ratio < 0.5; optional Kelvin-Voigt
+                  damping, at most one of: viscosity >= 0 [Pa s], or damping_ratio >= 0 [-] (of the body's first
+                  non-rigid mode on its mesh; resolved to a viscosity when the model is built)
 
     [plane]       # the ground n . x = d
     normal = [1.0, 5.0, 2.0]         # non-zero; the loader divides normal AND offset by |normal|
@@ -43,20 +45,22 @@ optional and defaults to the dataclass default unless said otherwise below):
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
     [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
                   integrator = "backward-euler" (default) | "bdf2"
-    [effects]     gravity, elasticity, contact, friction, damping (booleans)
+    [effects]     gravity, elasticity, contact, friction, damping, viscosity (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
-contact = a plane exists; friction = contact and mu > 0; damping = contact and contact.damping > 0. An explicit
-entry may turn any term off; turning on a term the scene cannot have (contact without a plane, friction or
-damping without contact) is an error. `friction = true` with mu = 0 (or `damping = true` with a zero contact
-damping, `gravity = true` with a zero gravity vector) is allowed: the term is then identically zero and a solver
-builds nothing for it.
+contact = a plane exists; friction = contact and mu > 0; damping = contact and contact.damping > 0; viscosity =
+true (the term exists where the material gives a viscosity or a damping ratio). An explicit entry may turn any
+term off; turning on a term the scene cannot have (contact without a plane, friction or damping without contact,
+viscosity without a material viscosity or damping ratio) is an error. `friction = true` with mu = 0 (or
+`damping = true` with a zero contact damping, `gravity = true` with a zero gravity vector, a zero viscosity) is
+allowed: the term is then identically zero and a solver builds nothing for it.
 
 `scenario_to_dict` writes the canonical dict of a scenario (every field explicit, plane normalised, effects
-resolved); `scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a
-scenario built or modified in code. `scenario_hash` hashes what is simulated, not what it is called. The canonical
-dict leaves out `time.integrator` when it is the default (backward Euler), so that the hashes and run keys of
-scenarios from before the field are unchanged.
+resolved; the material's viscosity and damping ratio only where given, and the viscosity effect only where the
+material has one of them, so that undamped scenes keep the hashes they had before material damping existed;
+likewise `time.integrator` only where it is not the default, backward Euler);
+`scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a scenario built or
+modified in code. `scenario_hash` hashes what is simulated, not what it is called.
 """
 
 from __future__ import annotations
@@ -80,12 +84,12 @@ from scenarios.model import (INTEGRATORS, Contact, Effects, Initial, Material, M
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
             "effects")
 MESH_KEYS = ("name", "resolution", "path", "scale")
-MATERIAL_KEYS = ("density", "youngs_modulus", "poisson_ratio")
+MATERIAL_KEYS = ("density", "youngs_modulus", "poisson_ratio", "viscosity", "damping_ratio")
 PLANE_KEYS = ("normal", "offset", "friction", "slope_deg", "downhill")
 CONTACT_KEYS = ("law", "stiffness", "damping", "friction_stiffness", "barrier_distance", "barrier_stiffness")
 INITIAL_KEYS = ("clearance", "rotation", "translation", "velocity", "angular_velocity", "squash")
 TIME_KEYS = ("dt", "duration", "frame_every", "integrator")
-EFFECT_KEYS = ("gravity", "elasticity", "contact", "friction", "damping")
+EFFECT_KEYS = ("gravity", "elasticity", "contact", "friction", "damping", "viscosity")
 CONTACT_LAWS = ("penalty", "barrier")
 DOWNHILL_AXES = {"x": (1.0, 0.0), "-x": (-1.0, 0.0), "z": (0.0, 1.0), "-z": (0.0, -1.0)}
 
@@ -133,12 +137,13 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         "tags": list(s.tags),
         "gravity": list(s.gravity),
         "mesh": mesh,
-        "material": _as_dict(s.material, MATERIAL_KEYS),
+        "material": {k: v for k, v in _as_dict(s.material, MATERIAL_KEYS).items() if v is not None},
         "plane": plane,
         "contact": _as_dict(s.contact, CONTACT_KEYS) | ({"stiffness": "auto"} if s.contact.stiffness is None else {}),
         "initial": initial,
         "time": _as_dict(s.time, TIME_KEYS if s.time.integrator != TimeSpec.integrator else TIME_KEYS[:-1]),
-        "effects": _as_dict(s.effects, EFFECT_KEYS),
+        "effects": {k: v for k, v in _as_dict(s.effects, EFFECT_KEYS).items()
+                    if k != "viscosity" or _damped(s.material)},
     }
 
 
@@ -223,7 +228,7 @@ def _scenario(d: object, base_dir: Path) -> Scenario:
     contact = _contact(t.get("contact", {}))
     initial = _initial(t.get("initial", {}), plane)
     time = _time(t.get("time", {}))
-    effects = _effects(t.get("effects", {}), gravity, plane, contact)
+    effects = _effects(t.get("effects", {}), gravity, plane, contact, material)
     if effects.contact and contact.law == "barrier" and initial.clearance == 0.0:
         raise ScenarioError("initial.clearance", initial.clearance, "the barrier law needs a positive initial gap")
     return Scenario(name=name, mesh=mesh, material=material, plane=plane, contact=contact, initial=initial,
@@ -273,10 +278,20 @@ def _material(raw: object) -> Material:
     if nu >= 0.5:
         raise ScenarioError("material.poisson_ratio", nu,
                             "must be < 0.5: 0.5 is the incompressible limit, where the Lame parameter is infinite")
+    viscosity, ratio = (None if t.get(key) is None else _number(t[key], f"material.{key}", ge=0.0)
+                        for key in ("viscosity", "damping_ratio"))
+    if viscosity is not None and ratio is not None:
+        raise ScenarioError("material.damping_ratio", ratio,
+                            f"give either material.viscosity (here {viscosity!r}) or material.damping_ratio, not both")
     return Material(density=_number(t.get("density", d.density), "material.density", gt=0.0),
                     youngs_modulus=_number(t.get("youngs_modulus", d.youngs_modulus), "material.youngs_modulus",
                                            gt=0.0),
-                    poisson_ratio=nu)
+                    poisson_ratio=nu, viscosity=viscosity, damping_ratio=ratio)
+
+
+def _damped(material: Material) -> bool:
+    """Whether the material gives a Kelvin-Voigt damping (a viscosity or a damping ratio, possibly zero)."""
+    return material.viscosity is not None or material.damping_ratio is not None
 
 
 def _plane(raw: object) -> Plane | None:
@@ -377,7 +392,7 @@ def _time(raw: object) -> TimeSpec:
     return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every), integrator=integrator)
 
 
-def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact) -> Effects:
+def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact, material: Material) -> Effects:
     """The [effects] table over the defaults the scene implies; a term the scene cannot have is an error."""
     t = _table(raw, "effects", EFFECT_KEYS)
     flags = {key: _bool(value, f"effects.{key}") for key, value in t.items()}
@@ -389,9 +404,12 @@ def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact) 
         if flags.get(key) and not has_contact:
             raise ScenarioError(f"effects.{key}", True, "needs the contact term, which this scene does not have")
         flags.setdefault(key, has_contact and present)
+    if flags.get("viscosity") and not _damped(material):
+        raise ScenarioError("effects.viscosity", True, "needs material.viscosity or material.damping_ratio")
     return Effects(gravity=flags.get("gravity", any(g != 0.0 for g in gravity)),
                    elasticity=flags.get("elasticity", True),
-                   contact=has_contact, friction=flags["friction"], damping=flags["damping"])
+                   contact=has_contact, friction=flags["friction"], damping=flags["damping"],
+                   viscosity=flags.get("viscosity", True) or not _damped(material))  # canonical where moot
 
 
 def _table(value: object, field: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:

@@ -40,11 +40,17 @@ class MeshSpec:
 
 @dataclass(frozen=True)
 class Material:
-    """Stable Neo-Hookean material: density [kg/m^3], Young's modulus [Pa], Poisson ratio [-] in (-1, 0.5)."""
+    """Stable Neo-Hookean material: density [kg/m^3], Young's modulus [Pa], Poisson ratio [-] in (-1, 0.5), and
+    its Kelvin-Voigt damping (docs/design.md, "Material damping"), given at most one way: `viscosity` eta [Pa s],
+    or `damping_ratio` zeta [-], the damping ratio of the body's first non-rigid vibration mode on its mesh,
+    resolved to a viscosity when the model is built (`solvers.physics.viscosity.viscosity_for_damping_ratio`).
+    Both None: undamped (no viscosity term)."""
 
     density: float = 1000.0
     youngs_modulus: float = 1.0e5
     poisson_ratio: float = 0.3
+    viscosity: float | None = None
+    damping_ratio: float | None = None
 
 
 @dataclass(frozen=True)
@@ -118,13 +124,16 @@ class TimeSpec:
 
 @dataclass(frozen=True)
 class Effects:
-    """Which terms of the incremental potential exist. Absent terms are not built and cost nothing."""
+    """Which terms of the incremental potential exist. Absent terms are not built and cost nothing. `damping` is
+    the contact's normal damping, `viscosity` the material's Kelvin-Voigt damping (built only where the material
+    gives a positive viscosity or damping ratio)."""
 
     gravity: bool = True
     elasticity: bool = True
     contact: bool = True
     friction: bool = True
     damping: bool = False
+    viscosity: bool = True
 
 
 @dataclass(frozen=True)

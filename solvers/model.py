@@ -1,8 +1,8 @@
 """The static simulation `Model` built from a scenario and a mesh, and the changing `State`.
 
-Newton-style split: a `Model` holds what does not change during a run (rest mesh, masses, material, plane,
-contact points and their area weights, which effects exist); a `State` holds positions and velocities; a solver
-advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share both.
+Newton-style split: a `Model` holds what does not change during a run (rest mesh, masses, material with its
+damping, plane, contact points and their area weights, which effects exist); a `State` holds positions and
+velocities; a solver advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share both.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from scenarios.model import Contact, Scenario
 from solvers.physics.contact import auto_penalty_stiffness
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices, snh_parameters
+from solvers.physics.viscosity import viscosity_for_damping_ratio
 
 
 @dataclass
@@ -54,7 +55,9 @@ class Model:
     (None without plane); friction: Coulomb coefficient mu [-] of the plane (0 without plane); contact: the contact
     law and its parameters with the automatic penalty stiffness resolved to a number; terms: names of the
     incremental-potential terms that exist (`inertia` always, then `elasticity`, `gravity`, `contact`, `friction`,
-    `damping`); L: bounding-box diagonal of the rest mesh [m]. `scenario` is the scene it was built from (its
+    `damping`, `viscosity`); L: bounding-box diagonal of the rest mesh [m]; viscosity: the Kelvin-Voigt eta [Pa s]
+    (0 without material damping; a scenario's damping ratio resolved on this mesh) and damping_ratio the ratio the
+    scenario asked for (None where it gave a viscosity or nothing). `scenario` is the scene it was built from (its
     name, time span and initial placement; the physics above is read from the model's own fields).
     """
 
@@ -78,6 +81,8 @@ class Model:
     density: float
     friction: float
     contact: Contact
+    viscosity: float = 0.0
+    damping_ratio: float | None = None
 
     @property
     def n(self) -> int:
@@ -108,6 +113,9 @@ def active_terms(scenario: Scenario) -> tuple[str, ...]:
             terms.append("friction")
         if eff.damping and scenario.contact.damping > 0.0 and scenario.contact.law == "penalty":
             terms.append("damping")
+    mat = scenario.material
+    if eff.viscosity and ((mat.viscosity or 0.0) > 0.0 or (mat.damping_ratio or 0.0) > 0.0):
+        terms.append("viscosity")
     return tuple(terms)
 
 
@@ -127,7 +135,8 @@ def resolved(scenario: Scenario, L: float) -> Scenario:
 
 def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
     """Assemble the static model of `scenario` on `mesh` (rest positions as given by the mesh); its scenario is
-    `resolved` (automatic settings made numbers)."""
+    `resolved` (automatic settings made numbers) and a material damping ratio is resolved to the viscosity that
+    gives this mesh's first non-rigid mode that ratio (`viscosity_for_damping_ratio`)."""
     scenario = resolved(scenario, float(mesh.bbox_diagonal()))
     X = np.ascontiguousarray(mesh.X, dtype=np.float64)
     tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
@@ -137,7 +146,7 @@ def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
     points = np.flatnonzero(areas > 0.0)
     mu, lam = snh_parameters(scenario.material.youngs_modulus, scenario.material.poisson_ratio)
     plane = scenario.plane
-    return Model(
+    model = Model(
         scenario=scenario, mesh=mesh, X=X, tets=tets, surface=np.asarray(mesh.surface, dtype=np.int64),
         Dm_inv=Dm_inv, vol=vol, mass=mass, points=points, area=areas[points], mu_snh=mu, lam_snh=lam,
         gravity=np.asarray(scenario.gravity, dtype=np.float64),
@@ -146,6 +155,12 @@ def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
         terms=active_terms(scenario), L=float(mesh.bbox_diagonal()), density=float(scenario.material.density),
         friction=0.0 if plane is None else float(plane.friction), contact=scenario.contact,
     )
+    if not model.has("viscosity"):
+        return model
+    zeta = scenario.material.damping_ratio
+    if zeta is None:
+        return replace(model, viscosity=float(scenario.material.viscosity))
+    return replace(model, viscosity=viscosity_for_damping_ratio(model, zeta), damping_ratio=float(zeta))
 
 
 def rotation_matrix(euler_deg: tuple[float, float, float]) -> np.ndarray:

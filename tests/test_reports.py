@@ -1,7 +1,9 @@
-"""Reports: results CSV, the self-contained HTML report, renders and VTU/PVD export."""
+"""Reports: results CSV, the self-contained HTML report (headline, figures, 3D viewer) and VTU/PVD export."""
 
 from __future__ import annotations
 
+import base64
+import html
 import json
 import re
 import subprocess
@@ -27,16 +29,17 @@ from analysis.table import (
     provenance,
     write_results_csv,
 )
-from reports import render
 from reports.export import export_vtu_series
+from reports.headline import headline_table
 from reports.html import ScenarioRuns, write_report_html
+from reports.interactive import plot_div, plotly_js, script_json, typed_array
 from reports.plots import pareto_front
-from reports.render import render_surface, select_renderer, view_bounds
+from reports.viewer import ViewerBudget, decimate_surface, viewer_figure
+from scenarios.meshes import bbox_diagonal
 from scenarios.model import Material, Plane
 from solvers.trajectory import Trajectory
 
 PLANE = Plane(normal=(0.0, 1.0, 0.0), offset=0.0, friction=0.5)
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
@@ -146,11 +149,13 @@ class _TagChecker(HTMLParser):
         self.stack: list[str] = []
         self.errors: list[str] = []
         self.refs: list[str] = []
+        self.ids: list[str] = []
         self.headings: list[str] = []
         self._in_h2 = False
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         self.refs += [value or "" for name, value in attrs if name in ("src", "href")]
+        self.ids += [value or "" for name, value in attrs if name == "id"]
         self._in_h2 = tag == "h2"
         if tag not in self.VOID:
             self.stack.append(tag)
@@ -170,34 +175,197 @@ def check_html(page: str) -> _TagChecker:
     checker.feed(page)
     checker.close()
     assert not checker.errors and not checker.stack
+    assert len(set(checker.ids)) == len(checker.ids)  # ids unique (sections, plots, figure JSON)
     return checker
+
+
+FIGURE_JSON = re.compile(r'<script type="application/json" id="([\w-]+)-json">(.*?)</script>', re.DOTALL)
+
+
+def figures(page: str) -> dict[str, dict]:
+    """The page's embedded figures by plot id (the JSON parses as it is in the page)."""
+    return {plot_id: json.loads(text) for plot_id, text in FIGURE_JSON.findall(page)}
 
 
 def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     ref, others = runs
     errors = {label: metrics.error_over_time(ref, traj) for label, traj in others.items()}
-    gates = [{"gate": "accuracy", "passed": True, "value": 0.01, "threshold": 0.05},
-             {"gate": "speed", "passed": False, "value": 3.0, "threshold": 5.0}]
+    gates = [{"gate": "accuracy", "passed": True, "value": 0.01, "limit": "<= 0.05"},
+             {"gate": "speed", "scenario": "slide", "variant": "pod/r16", "metric": "speedup", "passed": False,
+              "value": 3.0, "limit": ">= 5"}]
     rows = with_remesh_ratio([r | {"remesh": "alt", "model": "r16"} if r["mesh"] == "block/coarse_alt" else r
                               for r in result_rows(runs)])
     path = write_report_html(rows, tmp_path, gates=gates,
-                             runs=[ScenarioRuns("slide", ref, others, errors, plane=PLANE)], renderer="matplotlib",
+                             runs=[ScenarioRuns("slide", ref, others, errors, plane=PLANE)],
                              extra_sections=[("Notes", "<p>hand-written</p>")])
     page = path.read_text(encoding="utf-8")
     assert path == tmp_path / "report.html" and page.startswith("<!DOCTYPE html>")
-    assert "http://" not in page and "https://" not in page
     checker = check_html(page)
-    assert all(ref.startswith(("data:image/png;base64,", "#")) for ref in checker.refs)
-    assert checker.headings == ["Summary", "Accuracy versus time", "Error over time",
-                                "Reference time-step convergence", "Stick/slip agreement",
-                                "Remeshing", "Stability", "Renders: full versus reduced", "Notes", "Provenance"]
-    images = [r for r in checker.refs if r.startswith("data:image/png")]
-    assert len(images) == 2 + 3 * 3  # accuracy plot, one error plot, 3 key frames x (full + 2 reduced)
-    assert "Gates: 1 of 2 passed, 1 failed." in page
+    assert all(ref.startswith("#") for ref in checker.refs)  # no src, no external link
+    assert checker.headings == ["Summary", "Accuracy versus time", "Ground-truth ladders", "Error over time",
+                                "3D viewer", "Reference time-step convergence", "Stick/slip agreement",
+                                "Remeshing", "Stability", "Gate verdicts", "Results", "Notes", "Provenance"]
+    assert page.count(plotly_js()) == 1  # plotly.js inline, once
+    summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
+    assert "Gates: 1 of 2 passed, 1 failed." in summary
+    assert "speed, slide, pod/r16, speedup: 3 (limit &gt;= 5)" in summary  # the failure listed
+    assert "No ground truth in this result set" in summary
     assert "Newton did not converge at t=0.3" in page
     assert 'class="fail"' in page and 'class="pass"' in page
     assert "block/coarse_alt" in page  # remeshing table
-    assert "matplotlib" in page  # which renderer made the pictures
+    figs = figures(page)
+    assert set(figs) == {"frontier", "error-0", "viewer-0"}
+    frontier = {t["name"]: t for t in figs["frontier"]["data"]}
+    assert {"licrom/r16", "pod/r16"} <= set(frontier)  # the reference (error 0) has no point on a log axis
+    assert frontier["licrom/r16"]["x"] == [2.0, 2.0]  # step_ms_median of its two runs (no wall_s_per_sim_s)
+    assert "scenario: slide" in frontier["pod/r16"]["hovertext"][0]
+    assert figs["frontier"]["layout"]["xaxis"]["type"] == "log" == figs["frontier"]["layout"]["yaxis"]["type"]
+    viewer = figs["viewer-0"]
+    assert len(viewer["frames"]) == ref.n_frames  # 11 frames, within the budget
+    assert [t["name"] for t in viewer["data"] if t["type"] == "mesh3d"] == ["plane", "reference", "licrom/r16",
+                                                                            "pod/r16"]
+    assert "Viewers for" not in page  # the one scenario has its viewer
+    assert "Play" in json.dumps(viewer["layout"]["updatemenus"]) and len(viewer["layout"]["sliders"][0]["steps"]) == 11
+
+
+def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
+    rows = []
+    for s, certified, est in [("drop", True, 0.001), ("slope", False, 0.02)]:
+        truth = {"truth_certified": certified, "truth_err_est": est, "truth_dt": 0.00125, "truth_depth": 3,
+                 "truth_integrator": "bdf2"}
+        for solver, variant, err, wall, speed, agree, status in [
+                ("full", "reference", 0.05, 40.0, 1.0, True, "ok"), ("licrom", "r20", 0.03, 2.0, 25.0, True, "ok"),
+                ("licrom", "r10", 0.08, 1.0, 30.0, False, "ok"), ("pod", "r20", 0.2, 1.5, float("nan"), False,
+                                                                  "failed" if s == "slope" else "ok")]:
+            rows.append({"scenario": s, "solver": solver, "variant": variant, "dt": 0.01, "status": status,
+                         "err_truth": err, "pos_rmse_rel": err / 2, "wall_s_per_sim_s": wall,
+                         "speedup_equal_accuracy": speed, "speedup": 99.0, "stick_agree": agree,
+                         "integrator": "backward-euler", "ladder": "",
+                         "frontier_note": "less accurate than every ladder level" if solver == "pod" else "", **truth})
+        for k, err in enumerate([0.1, 0.05, 0.02, 0.0]):
+            rows.append({"scenario": s, "solver": "full", "variant": f"ladder-bdf2-{k}", "dt": 0.01 / 2 ** k,
+                         "status": "ok", "err_truth": err, "wall_s_per_sim_s": 40.0 * 2 ** k, "ladder": "bdf2",
+                         "integrator": "bdf2", **truth})
+    frame = pd.DataFrame(rows)
+    gates = [{"gate": "acc", "scenario": "slope", "variant": "licrom/r20", "metric": "err_truth", "passed": False,
+              "status": "undecidable", "value": 0.03, "limit": "<= 0.01"},
+             {"gate": "fin", "scenario": "drop", "variant": "licrom/r20", "metric": "finite", "passed": False,
+              "status": "failed", "value": False, "limit": "= true"}]
+    table = headline_table(frame, gates).set_index("solver")
+    assert list(table.index) == ["full", "licrom", "pod"]  # no ladder family, no ladder variant
+    assert table.loc["licrom", "best variant"] == "licrom/r20"
+    assert table.loc["licrom", "median err_truth"] == pytest.approx(0.03)
+    assert table.loc["licrom", "median speedup_equal_accuracy"] == pytest.approx(25.0)
+    assert table.loc["licrom", "stick/slip agreement"] == "2 of 2"
+    assert table.loc["licrom", "stable runs"] == "1 of 2"  # drop's finite check failed
+    assert table.loc["pod", "stable runs"] == "1 of 2"  # slope's run failed
+    assert table.loc["pod", "truth certified"] == "1 of 2 scenarios"
+    assert table.loc["pod", "frontier note"] == "less accurate than every ladder level (2)"
+    assert pd.isna(table.loc["licrom", "frontier note"])
+    page = write_report_html(frame, tmp_path, gates=gates).read_text(encoding="utf-8")
+    check_html(page)
+    summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
+    assert "certified on 1" in summary and "not certified: slope" in summary and "No ground truth" not in summary
+    assert "Gates: 0 of 2 passed, 1 failed, 1 undecidable" in summary
+    stability = page[page.index('id="stability"'):page.index('id="gate-verdicts"')]
+    assert "undecidable: err_truth" in stability and "fail: finite" in stability
+    figs = figures(page)
+    frontier = figs["frontier"]["data"]
+    ladders = [t for t in frontier if t.get("legendgroup") == "ladder bdf2"]
+    assert len(ladders) == 2 and [t["showlegend"] for t in ladders] == [True, False]  # one legend entry
+    assert ladders[0]["x"] == [40.0, 80.0, 160.0]  # the truth itself (error 0) is not on the log axis
+    assert figs["frontier"]["layout"]["xaxis"]["title"]["text"].startswith("wall_s_per_sim_s")
+    assert any("error estimate" in t["name"] for t in figs["ladders-plot"]["data"])
+
+
+def test_headline_without_ground_truth_falls_back_to_the_reference(runs) -> None:
+    frame = pd.DataFrame(result_rows(runs))
+    table = headline_table(frame).set_index("solver")
+    assert {"median pos_rmse_rel", "median speedup"} <= set(table.columns)
+    assert not any("err_truth" in c for c in table.columns)
+    assert table.loc["licrom", "best variant"] == "licrom/r16"  # r64 failed: no error
+    assert table.loc["licrom", "median speedup"] == pytest.approx(20.0)
+    assert (table["truth certified"] == "no truth").all()
+
+
+HOSTILE = '</script><script>window.pwned=1</script><img src=x onerror="window.pwned=2">&amp;\u2028'
+
+
+def test_hostile_names_are_escaped_in_html_and_in_the_figures(tmp_path: Path, runs) -> None:
+    ref, others = runs
+    rows = [r | {"scenario": HOSTILE, "variant": HOSTILE if r["solver"] == "pod" else r["variant"]}
+            for r in result_rows(runs)]
+    labels = {"licrom/r16": others["licrom/r16"], f"pod/{HOSTILE}": others["pod/r16"]}
+    errors = {label: metrics.error_over_time(ref, traj) for label, traj in labels.items()}
+    page = write_report_html(rows, tmp_path, gates=[{"gate": HOSTILE, "scenario": HOSTILE, "passed": False}],
+                             runs=[ScenarioRuns(HOSTILE, ref, labels, errors, plane=PLANE)],
+                             title=HOSTILE).read_text(encoding="utf-8")
+    assert HOSTILE not in page and "<script>window.pwned" not in page and "<img" not in page
+    check_html(page)
+    figs = figures(page)  # every figure's JSON ends where it should and parses
+    assert set(figs) == {"frontier", "error-0", "viewer-0"}
+    names = [t.get("name", "") for f in figs.values() for t in f["data"]]
+    assert html.escape(f"pod/{HOSTILE}") in names  # plotly shows the escaped text, not markup
+
+
+def test_script_json_cannot_end_its_element() -> None:
+    text = script_json({"name": "</script><!-- \u2028", "x": [1.0, float("nan")], "n": np.int64(3)})
+    assert "<" not in text and ">" not in text and "\u2028" not in text
+    assert json.loads(text) == {"name": "</script><!-- \u2028", "x": [1.0, None], "n": 3}
+
+
+def test_figure_helpers_refuse_bad_input() -> None:
+    with pytest.raises(ValueError, match="plot id 'a b'"):
+        plot_div({"data": []}, "a b")
+    with pytest.raises(ValueError, match="dtype 'f2'"):
+        typed_array(np.zeros(3), "f2")
+    assert np.frombuffer(base64.b64decode(typed_array(np.array([1.5, -2.0]))["bdata"]), "<f4").tolist() == [1.5, -2.0]
+
+
+def test_decimated_surface_keeps_its_budget_and_the_original_vertices() -> None:
+    sphere = pyvista.Sphere(theta_resolution=60, phi_resolution=60).triangulate()
+    X, tri = np.asarray(sphere.points), sphere.faces.reshape(-1, 4)[:, 1:]
+    assert len(tri) > 3000
+    verts, small = decimate_surface(X, tri, 800)
+    assert 200 < len(small) <= 800
+    assert set(np.unique(small)) == set(range(len(verts)))  # every kept vertex is used
+    assert np.all(verts < len(X)) and len(np.unique(verts)) == len(verts)
+    assert np.all(np.linalg.norm(X[verts], axis=1) == pytest.approx(0.5))  # original points, not new ones
+    whole_verts, whole = decimate_surface(X, tri, 10_000)
+    assert len(whole) == len(tri) and np.array_equal(whole_verts[whole], tri)
+
+
+def test_viewer_colours_by_distance_frames_the_bodies_and_drops_what_it_cannot_show(block, runs) -> None:
+    ref, others = runs
+    X, tets, surface = block
+    broken = sliding(block, 0.05)
+    broken.x[4] = np.nan  # a shown frame (0, 2, 4, ... of 11)
+    other_mesh = Trajectory(t=ref.t, x=ref.x[:, :-1], X=X[:-1], tets=tets[:1], surface=surface[:1])
+    fig, notes = viewer_figure([("ref", ref), ("pod", others["pod/r16"]), ("broken", broken),
+                                ("other", other_mesh)], PLANE, ViewerBudget(max_frames=6, max_triangles=40))
+    assert notes == ["broken: not shown (non-finite positions)", "other: not shown (another mesh than ref's)"]
+    assert len(fig["frames"]) == 6
+    meshes = [t for t in fig["data"] if t["type"] == "mesh3d"]
+    assert [t["name"] for t in meshes] == ["plane", "ref", "pod"]
+    assert len(meshes[1]["i"]["bdata"]) <= 4 * 40 * 4 / 3 + 4  # at most 40 triangles (int32, base64)
+
+    def values(typed: dict) -> np.ndarray:
+        return np.frombuffer(base64.b64decode(typed["bdata"]), dtype="<f4")
+
+    last = fig["frames"][-1]["data"]
+    assert np.all(values(last[0]["intensity"]) == 0.0)  # the first run against itself
+    # pod stands still while the reference slides 0.1 m: its distance at t = 1 s is 0.1 m / L everywhere
+    assert values(last[1]["intensity"]) == pytest.approx(0.1 / bbox_diagonal(X), rel=1e-5)
+    plane_y = np.array(meshes[0]["y"])
+    assert np.all(plane_y == 0.0)  # the plane y = 0
+    xs = np.concatenate([values(f["data"][0]["x"]) for f in fig["frames"]])
+    plane_x = np.array(meshes[0]["x"])
+    assert plane_x.min() < xs.min() and plane_x.max() > xs.max()  # around the path ...
+    assert plane_x.max() - plane_x.min() < 2.0 * (xs.max() - xs.min())  # ... and cropped to it
+    rng = fig["layout"]["scene"]["xaxis"]["range"]
+    assert rng[0] <= plane_x.min() and rng[1] >= plane_x.max()
+    with pytest.raises(ValueError, match="max_frames"):
+        ViewerBudget(max_frames=1)
 
 
 def test_time_convergence_section_sets_the_references_time_error_beside_the_best_reduced_error(tmp_path):
@@ -220,16 +388,8 @@ def test_html_report_from_results_alone(tmp_path: Path, runs) -> None:
     frame = pd.read_csv(write_results_csv(result_rows(runs), tmp_path / "results.csv", PROVENANCE))
     page = write_report_html(frame, tmp_path).read_text(encoding="utf-8")
     check_html(page)
-    assert page.count("data:image/png;base64,") == 1
+    assert set(figures(page)) == {"frontier"}
     assert page.count("No trajectories were given to the report.") == 2
-
-
-def test_render_makes_a_png_with_the_selected_renderer(runs) -> None:
-    ref, _ = runs
-    renderer = select_renderer("auto")
-    assert renderer.name in ("vtk", "matplotlib")
-    png = render_surface(ref.x[0], ref.surface, bounds=view_bounds(ref.x), plane=PLANE, renderer=renderer)
-    assert png.startswith(PNG_SIGNATURE) and len(png) > 1000
 
 
 def test_vtu_series_reads_back(tmp_path: Path, runs) -> None:
@@ -247,12 +407,37 @@ def test_vtu_series_reads_back(tmp_path: Path, runs) -> None:
                                    atol=1e-12)
 
 
-def test_renderer_falls_back_to_matplotlib_without_vtk(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(render, "_probe_vtk", lambda window: None)
-    select_renderer.cache_clear()
-    try:
-        assert select_renderer("auto").name == "matplotlib"
-        with pytest.raises(RuntimeError, match="off-screen"):
-            select_renderer("vtk")
-    finally:
-        select_renderer.cache_clear()
+def test_build_report_shows_the_truth_run_and_errors_against_it(tmp_path: Path, block) -> None:
+    from bench.reporting import build_report
+    from bench.store import RunStore
+
+    suite = tmp_path / "tiny.toml"
+    suite.write_text('[suite]\nname = "tiny"\ndescription = "stored runs"\n[base.mesh]\nname = "block"\n'
+                     'resolution = "coarse"\n[base.time]\ndt = 0.01\nduration = 0.05\n[[axis]]\nname = "mu"\n'
+                     'field = "plane.friction"\nvalues = [0.3]\n')
+    out = tmp_path / "out"
+    store = RunStore(out / "runs")
+    truth = {"truth_certified": True, "truth_err_est": 0.001, "truth_dt": 0.0025, "truth_depth": 2,
+             "truth_integrator": "bdf2"}
+    rows = []
+    for key, solver, variant, ladder, speed in [("ref", "full", "reference", "", 0.1),
+                                                ("lic", "licrom", "r20", "", 0.09),
+                                                ("l0", "full", "ladder-bdf2-0", "bdf2", 0.1),
+                                                ("l2", "full", "ladder-bdf2-2", "bdf2", 0.11)]:
+        traj = sliding(block, speed)
+        store.save(key, traj, {})
+        rows.append({"scenario": "s", "solver": solver, "variant": variant, "run": key, "ladder": ladder,
+                     "status": "ok", "err_truth": 0.01, "pos_rmse_rel": 0.01, **truth})
+    rows.append({"scenario": "t", "solver": "licrom", "variant": "r20", "status": "failed"})  # no stored run
+    pd.DataFrame(rows).to_csv(out / "results.csv", index=False)
+    (out / "run.json").write_text(json.dumps({"suite": str(suite)}))
+    page = build_report(out).read_text(encoding="utf-8")
+    figs = figures(page)
+    shown = [t["name"] for t in figs["viewer-0"]["data"] if t["type"] == "mesh3d"]
+    assert shown == ["truth (full/ladder-bdf2-2)", "full", "licrom/r20"]  # not the other ladder level
+    assert "Viewers for 1 of the 2 scenarios" in page
+    errors = {t["name"]: t for t in figs["error-0"]["data"]}
+    assert set(errors) == {"full", "licrom/r20"}  # the reference too, against the truth
+    # the truth slides at 0.11 m/s, the reference at 0.1: every vertex 0.01 m apart at t = 1 s
+    assert errors["full"]["y"][-1] == pytest.approx(0.01 / bbox_diagonal(block[0]), rel=1e-6)
+    assert "error against truth (full/ladder-bdf2-2)" in figs["error-0"]["layout"]["title"]["text"]

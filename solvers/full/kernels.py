@@ -340,3 +340,82 @@ def friction_kernel(
             t = vt / s
             wp.atomic_add(grad, i, A * cap * t)
             wp.atomic_add(values, diag[i], (A * cap / (h * s)) * (T - wp.outer(t, t)))
+
+
+@wp.func
+def green_strain(F: wp.mat33d) -> wp.mat33d:
+    """E = (F^T F - I) / 2."""
+    return f64(0.5) * (wp.transpose(F) * F - wp.identity(n=3, dtype=f64))
+
+
+@wp.kernel
+def viscous_energy_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    x_bar: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    eta_over_h: f64,
+    energy: wp.array(dtype=f64),
+):
+    """energy[0] += V_e eta / h_eff |E(F) - E(F_bar)|_F^2 (see solvers.physics.viscosity)."""
+    e = wp.tid()
+    A = green_strain(deformation_gradient(x, tets[e], Dm_inv[e])) - green_strain(
+        deformation_gradient(x_bar, tets[e], Dm_inv[e]))
+    wp.atomic_add(energy, 0, vol[e] * eta_over_h * wp.ddot(A, A))
+
+
+@wp.kernel
+def viscous_gradient_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    x_bar: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    eta_over_h: f64,
+    grad: wp.array(dtype=wp.vec3d),
+):
+    """grad[x_a] += 2 c F A g_a with c = V_e eta / h_eff and A = E(F) - E(F_bar)."""
+    e = wp.tid()
+    tet = tets[e]
+    Dmi = Dm_inv[e]
+    F = deformation_gradient(x, tet, Dmi)
+    FA = F * (green_strain(F) - green_strain(deformation_gradient(x_bar, tet, Dmi)))
+    c = vol[e] * eta_over_h
+    for a in range(4):
+        wp.atomic_add(grad, tet[a], f64(2.0) * c * (FA * shape_gradient(Dmi, a)))
+
+
+@wp.kernel
+def viscous_hessian_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    x_bar: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    eta_over_h: f64,
+    blocks: wp.array(dtype=wp.mat33d),
+):
+    """Per-element Hessian blocks (16 per tet, written, not added): with c = V_e eta / h_eff and A = E(F) -
+    E(F_bar), the block of the vertex pair (a, b) is c [(g_a . g_b) F F^T + (F g_b)(F g_a)^T] (Gauss-Newton)
+    + 2 c (g_a^T A_+ g_b) I (the rest, A's eigenvalues clamped at 0)."""
+    e = wp.tid()
+    tet = tets[e]
+    Dmi = Dm_inv[e]
+    F = deformation_gradient(x, tet, Dmi)
+    A = green_strain(F) - green_strain(deformation_gradient(x_bar, tet, Dmi))
+    c = vol[e] * eta_over_h
+    Q = wp.mat33d()
+    lam = wp.vec3d()
+    wp.eig3(A, Q, lam)
+    Ap = Q * wp.diag(wp.vec3d(wp.max(lam[0], f64(0.0)), wp.max(lam[1], f64(0.0)), wp.max(lam[2], f64(0.0)))) * (
+        wp.transpose(Q))
+    FFt = F * wp.transpose(F)
+    eye = wp.identity(n=3, dtype=f64)
+    for a in range(4):
+        ga = shape_gradient(Dmi, a)
+        Fga = F * ga
+        for b in range(4):
+            gb = shape_gradient(Dmi, b)
+            blocks[16 * e + 4 * a + b] = (c * (wp.dot(ga, gb) * FFt + wp.outer(F * gb, Fga))
+                                          + f64(2.0) * c * wp.dot(ga, Ap * gb) * eye)

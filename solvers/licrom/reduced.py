@@ -157,21 +157,23 @@ class ReducedModel:
         [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c)."""
         m = self.model
         psi, P, H9 = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode)
-        E = float(self.wV @ psi)
-        if mode == K.ENERGY:
-            return E, None, None
+        return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None,
+                                                        H9 if mode == K.HESSIAN else None)
+
+    def pull_back(self, P: np.ndarray | None, H9: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The cubature sums of per-tet stresses P (c, 3, 3) [Pa] and density Hessians H9 (c, 9, 9) [Pa] (row-major
+        vec) in the latent coordinates: sum_c w_c V_c B_c^T vec P_c (r,) [N] and sum_c w_c V_c B_c^T H9_c B_c (r, r)
+        [N/m] (None where the input is None)."""
         Bf = self.B.reshape(-1, self.r)
-        g = Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
-        if mode == K.STRESS:
-            return E, g, None
+        g = None if P is None else Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
+        if H9 is None:
+            return g, None
         Hs = self.wV[:, None, None] * H9
         if self.B_sparse is None:
-            H = Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
-        else:
-            c = Hs.shape[0]
-            blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
-            H = (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
-        return E, g, H
+            return g, Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
+        c = Hs.shape[0]
+        blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
+        return g, (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
 
 
 def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -191,7 +193,7 @@ class ReducedStep:
     """Per-step constants: dt h [s] and the integrator's effective step h_eff [s], q^n, q_bar and the inertial
     target q_hat = q_bar + h_eff qdot_bar (r,), the contact points at the start x_prev (p, 3) [m] and at q_bar, x_bar
     (p, 3) [m], and the lagged normal pressure fn (p,) [Pa] (None without friction). Backward Euler: h_eff = h,
-    q_bar = q^n."""
+    q_bar = q^n. The dissipative terms' velocity is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the points)."""
 
     h: float
     h_eff: float
@@ -218,6 +220,13 @@ class _SamplePoints:
     grad_shape: np.ndarray
     S: np.ndarray
     S_cho: tuple
+
+    def forces(self, wV: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """The cubature tets' forces w_c V_c P_c g_a summed on their vertices, (k, 3) [N]; wV (c,) [m^3], P (c, 3, 3)
+        [Pa] the tets' stresses."""
+        out = np.zeros((self.vertices.size, 3))
+        np.add.at(out, self.local, wV[:, None, None] * np.einsum("cij,caj->cai", P, self.grad_shape))
+        return out
 
     @classmethod
     def build(cls, rm: ReducedModel) -> "_SamplePoints":

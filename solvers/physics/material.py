@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.physics.terms import BodyTerm, Evaluation, StepData, register
+from solvers.physics.terms import BodyTerm, Evaluation, StepData, element_blocks, register
 
 if TYPE_CHECKING:
     import warp as wp
@@ -124,10 +124,14 @@ def elastic_energy(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: np.
 def elastic_gradient(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: np.ndarray,
                      mu: float, lam: float) -> np.ndarray:
     """Gradient of the elastic energy with respect to positions, (n, 3) [N]."""
-    P = snh_pk1(deformation_gradient(x, tets, Dm_inv), mu, lam)
-    g = shape_gradients(Dm_inv)
-    fe = vol[:, None, None] * np.einsum("eij,eaj->eai", P, g)  # (m, 4, 3)
-    out = np.zeros_like(x)
+    return nodal_forces(snh_pk1(deformation_gradient(x, tets, Dm_inv), mu, lam), tets, Dm_inv, vol, x.shape[0])
+
+
+def nodal_forces(P: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: np.ndarray, n: int) -> np.ndarray:
+    """The gradient (n, 3) [N] of energies V_e psi(F_e) whose stresses dpsi/dF are P (m, 3, 3) [Pa]: V_e P_e g_a
+    summed on each tet's vertices."""
+    fe = vol[:, None, None] * np.einsum("eij,eaj->eai", P, shape_gradients(Dm_inv))  # (m, 4, 3)
+    out = np.zeros((n, 3))
     np.add.at(out, tets, fe)
     return out
 
@@ -138,10 +142,16 @@ def element_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: n
     H9 = snh_dpdf(deformation_gradient(x, tets, Dm_inv), mu, lam)
     if project:
         H9 = project_psd(H9)
+    return pulled_back(H9, Dm_inv, vol)
+
+
+def pulled_back(H9: np.ndarray, Dm_inv: np.ndarray, vol: np.ndarray) -> np.ndarray:
+    """Per-element Hessians (m, 12, 12) over the tets' vertex positions (vertex-major, 3 a + alpha) of energies
+    V_e psi(F_e) whose density Hessians in F are H9 (m, 9, 9) (row-major vec): V_e B_e^T H9_e B_e."""
     g = shape_gradients(Dm_inv)  # (m, 4, 3)
     # d vec(F)[3 i + j] / d x[a, alpha] = delta_{i alpha} g[a, j]
     B = np.einsum("il,eaj->eijal", np.eye(3), g).reshape(-1, 9, 12)
-    return vol[:, None, None] * np.einsum("eki,ekl,elj->eij", B, H9, B)
+    return vol[:, None, None] * (np.swapaxes(B, 1, 2) @ H9 @ B)
 
 
 @register
@@ -160,11 +170,8 @@ class Elasticity(BodyTerm):
         return elastic_gradient(x, model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
 
     def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
-        He = element_hessians(x, model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
-        idx = (3 * model.tets[:, :, None] + np.arange(3)).reshape(-1, 12)  # (m, 12) dof of each element row
-        rows = np.repeat(idx, 12, axis=1).ravel()
-        cols = np.tile(idx, (1, 12)).ravel()
-        return sp.csr_matrix((He.ravel(), (rows, cols)), shape=(3 * model.n, 3 * model.n))
+        return element_blocks(model, element_hessians(x, model.tets, model.Dm_inv, model.vol, model.mu_snh,
+                                                      model.lam_snh))
 
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         import warp as wp
@@ -193,9 +200,6 @@ class Elasticity(BodyTerm):
         """The cubature tets' elastic forces w_c V_c P_c g_a on their vertices."""
         from solvers.licrom import kernels as K
 
-        m, rm, pts = rs.model, rs.reduced, rs.samples
+        m, rm = rs.model, rs.reduced
         _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
-        forces = rm.wV[:, None, None] * np.einsum("cij,caj->cai", P, pts.grad_shape)
-        out = np.zeros((pts.vertices.size, 3))
-        np.add.at(out, pts.local, forces)
-        return out
+        return rs.samples.forces(rm.wV, P)

@@ -1,6 +1,6 @@
 """Physics terms of the incremental potential as objects: one `Term` per effect, each in its own module of
-solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, penalty contact, barrier contact and
-contact damping in contact.py, friction in friction.py).
+solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, Kelvin-Voigt material damping in
+viscosity.py, penalty contact, barrier contact and contact damping in contact.py, friction in friction.py).
 
 A term holds its pure numpy reference (energy [J], gradient (n, 3) [N], PSD-projected Hessian (3n, 3n) [N/m] over
 the vertex positions x (n, 3) [m]) and its evaluation for each backend: `launch` adds it with the full-space warp
@@ -35,8 +35,8 @@ if TYPE_CHECKING:
 Evaluation = tuple[float, np.ndarray | None, np.ndarray | None]
 
 #: The modules that define terms, in the order their terms are summed.
-_MODULES = ("solvers.physics.inertia", "solvers.physics.material", "solvers.physics.contact",
-            "solvers.physics.friction")
+_MODULES = ("solvers.physics.inertia", "solvers.physics.material", "solvers.physics.viscosity",
+            "solvers.physics.contact", "solvers.physics.friction")
 _TERMS: list["Term"] = []
 
 
@@ -46,8 +46,8 @@ class StepData:
     [m], the start-of-step positions x_prev = x^n (n, 3) [m], the time step h [s], the lagged normal pressure fn (p,)
     [Pa] at the model's contact points (None without friction), `inertia` (False: static equilibrium, no inertial
     term), and the integrator's x_bar (n, 3) [m] and effective step h_eff [s]: the inertial term is
-    1/(2 h_eff^2) |x - x_hat|_M^2 and every dissipative term uses the velocity (x - x_bar) / h_eff. Backward Euler
-    (the defaults): x_bar = x_prev, h_eff = h."""
+    1/(2 h_eff^2) |x - x_hat|_M^2 and every dissipative term uses the velocity v(x) = (x - x_bar) / h_eff. Backward
+    Euler (the defaults, None): x_bar = x_prev, h_eff = h."""
 
     x_hat: np.ndarray
     x_prev: np.ndarray
@@ -157,6 +157,15 @@ def scatter_points(model: Model, values: np.ndarray) -> np.ndarray:
     out = np.zeros((model.n, 3))
     np.add.at(out, model.points, values)
     return out
+
+
+def element_blocks(model: Model, blocks: np.ndarray) -> sp.csr_matrix:
+    """Per-tet Hessians (m, 12, 12), vertex-major (3 a + alpha over the tet's vertices a), summed into a (3n, 3n)
+    matrix."""
+    idx = (3 * model.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+    rows = np.repeat(idx, 12, axis=1).ravel()
+    cols = np.tile(idx, (1, 12)).ravel()
+    return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(3 * model.n, 3 * model.n))
 
 
 def point_blocks(model: Model, blocks: np.ndarray) -> sp.csr_matrix:

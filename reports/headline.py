@@ -1,0 +1,147 @@
+"""The report's first screen: per solver family its best variant's accuracy, speed, stick/slip agreement,
+stability and whether the truth is certified, and the gates as a count with the failures listed.
+
+Accuracy is against the ground truth (`err_truth`) when the results have one, else against the same-dt reference
+(`pos_rmse_rel`), with the step-time speed-up in place of the speed-up at equal accuracy (`reports.plots.
+accuracy_columns`). Ground-truth ladder rows (a non-empty `ladder` column) are not variants of a family.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from analysis.table import variant_labels
+from reports.plots import accuracy_columns, ladder_mask, numeric_column
+
+#: Metrics of the gates and advisory checks that judge stability (a run's stability fails when one of them does).
+STABILITY_METRICS = frozenset({"status", "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_final",
+                               "inverted_tets_frame_max", "volume_ratio_final", "energy_ratio_max", "creep_ratio",
+                               "not_converged"})
+
+
+def verdict_frame(gates: Sequence[object]) -> pd.DataFrame:
+    """Gate verdicts (mappings, dataclasses or plain objects) as a table with a `status` column: `passed`,
+    `failed` or `undecidable` (the verdicts' own `status` where they have one, else from `passed`)."""
+    rows = []
+    for verdict in gates:
+        if isinstance(verdict, Mapping):
+            rows.append(dict(verdict))
+        elif dataclasses.is_dataclass(verdict) and not isinstance(verdict, type):
+            rows.append(dataclasses.asdict(verdict))
+        else:
+            rows.append(dict(vars(verdict)))
+    frame = pd.DataFrame(rows)
+    if frame.empty:
+        return frame
+    passed = frame["passed"].map(_truthy) if "passed" in frame else pd.Series(False, index=frame.index)
+    own = frame["status"] if "status" in frame else pd.Series(None, index=frame.index, dtype=object)
+    frame["status"] = own.where(own.notna(), passed.map({True: "passed", False: "failed"}))
+    frame["passed"] = passed
+    return frame
+
+
+def _truthy(value: object) -> bool:
+    """A boolean cell as read from a CSV or a table: True, 'true', 'True', 1 are true; missing is false."""
+    if value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value))):
+        return False
+    if isinstance(value, str):
+        return value.strip().lower() in ("true", "yes", "1")
+    return bool(value)
+
+
+def _runs_ok(frame: pd.DataFrame) -> pd.Series:
+    """Runs that finished (status ok or missing), with finite positions and no unconverged step."""
+    status = frame["status"].fillna("ok").astype(str) if "status" in frame else pd.Series("ok", index=frame.index)
+    finite = frame["finite"].map(lambda v: True if v is None or pd.isna(v) else _truthy(v)) if "finite" in frame \
+        else pd.Series(True, index=frame.index)
+    unconverged = numeric_column(frame, "not_converged").fillna(0.0)
+    return (status == "ok") & finite.astype(bool) & (unconverged == 0)
+
+
+def _count(mask: pd.Series) -> str:
+    return f"{int(mask.sum())} of {len(mask)}" if len(mask) else "\u2013"
+
+
+def ranked_variants(frame: pd.DataFrame) -> dict[str, list[str]]:
+    """Solver family -> the labels (`solver/variant`) of its variants from the lowest median error over their
+    finished runs (the error column of `accuracy_columns`) to the highest, those without an error last; ladder
+    rows are left out."""
+    cols = accuracy_columns(frame)
+    f = frame[~ladder_mask(frame)]
+    if f.empty or "solver" not in f:
+        return {}
+    err = numeric_column(f, cols.error).where(_runs_ok(f))
+    medians = pd.DataFrame({"family": f["solver"].astype(str), "label": variant_labels(f), "err": err})
+    medians = medians.groupby(["family", "label"], sort=True)["err"].median().reset_index()
+    medians["missing"] = medians["err"].isna()
+    medians = medians.sort_values(["family", "missing", "err", "label"])
+    return {family: list(g["label"]) for family, g in medians.groupby("family", sort=True)}
+
+
+def best_variants(frame: pd.DataFrame) -> dict[str, str]:
+    """Solver family -> the label of its best variant (the first of `ranked_variants`)."""
+    return {family: labels[0] for family, labels in ranked_variants(frame).items()}
+
+
+def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.DataFrame:
+    """One row per solver family: its best variant, runs, median error, median speed-up, stick/slip agreement,
+    stable runs (finished, finite, converged, and every stability check of its case passed), the truth's
+    certification over its scenarios and, where the results have them, the variant's frontier notes with their
+    counts."""
+    cols = accuracy_columns(frame)
+    best = best_variants(frame)
+    labels = variant_labels(frame)
+    verdicts = verdict_frame(gates)
+    unstable: set[tuple[str, str]] = set()
+    if not verdicts.empty and {"metric", "scenario", "variant"} <= set(verdicts):
+        bad = verdicts[verdicts["metric"].isin(STABILITY_METRICS) & (verdicts["status"] == "failed")]
+        unstable = set(zip(bad["scenario"].astype(str), bad["variant"].astype(str)))
+    rows = []
+    for family, label in best.items():
+        g = frame[(labels == label) & ~ladder_mask(frame)]
+        stick = g["stick_agree"].dropna().map(_truthy) if "stick_agree" in g else pd.Series(dtype=bool)
+        scen = g["scenario"].astype(str) if "scenario" in g else pd.Series("", index=g.index)
+        stable = _runs_ok(g) & ~pd.Series([(s, label) in unstable for s in scen], index=g.index, dtype=bool)
+        if "truth_certified" in g and cols.truth:
+            per_scenario = g.groupby(scen)["truth_certified"].first().map(_truthy)
+            certified = ("yes" if per_scenario.all() else "no" if not per_scenario.any()
+                         else f"{int(per_scenario.sum())} of {len(per_scenario)} scenarios")
+        else:
+            certified = "no truth"
+        rows.append({"solver": family, "best variant": label, "runs": len(g),
+                     f"median {cols.error}": numeric_column(g, cols.error).median(),
+                     f"median {cols.speedup}": numeric_column(g, cols.speedup).median(),
+                     "stick/slip agreement": _count(stick), "stable runs": _count(stable),
+                     "truth certified": certified})
+        notes = g["frontier_note"].dropna().astype(str) if "frontier_note" in g else pd.Series(dtype=str)
+        notes = notes[notes.str.strip() != ""]
+        if not notes.empty:  # why a speed-up at equal accuracy is missing, e.g. more accurate than the ladder
+            rows[-1]["frontier note"] = "; ".join(f"{note} ({n})" for note, n in notes.value_counts().items())
+    return pd.DataFrame(rows)
+
+
+def truth_summary(frame: pd.DataFrame) -> str:
+    """A sentence on what the accuracy is measured against: the ground truth (how many scenarios have a
+    certified one, the largest error estimate) or, without one, the same-dt reference."""
+    cols = accuracy_columns(frame)
+    if not cols.truth:
+        return ("No ground truth in this result set; accuracy against the same-dt reference (pos_rmse_rel, "
+                "fraction of the body's size L) and the step-time speed-up.")
+    scen = frame["scenario"].astype(str) if "scenario" in frame else pd.Series("", index=frame.index)
+    has = numeric_column(frame, "err_truth").notna()
+    scenarios = sorted(set(scen[has]))
+    certified = (frame[has].groupby(scen[has])["truth_certified"].first().map(_truthy)
+                 if "truth_certified" in frame else pd.Series(False, index=scenarios))
+    est = numeric_column(frame[has], "truth_err_est").max()
+    uncertified = [s for s in scenarios if not certified.get(s, False)]
+    text = (f"Accuracy against the ground truth (err_truth, fraction of the body's size L) on {len(scenarios)} "
+            f"scenarios, certified on {int(certified.sum())}"
+            + (f" (largest error estimate {est:.2g} L)" if np.isfinite(est) else "")
+            + (f"; not certified: {', '.join(uncertified)}" if uncertified else "")
+            + ". Cost: stepping wall time per simulated second; speed-up at equal accuracy against the "
+              "full-space ladder.")
+    return text
