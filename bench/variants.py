@@ -35,6 +35,10 @@ def grid(solver: str, label: str, base: dict | None = None, **axes: list) -> lis
 #: (results rows get it as `ref_dt_change`, bench/runner.py `with_ref_dt_change`).
 DT_HALF = Variant("full", {}, label="dt-half", dt_scale=0.5)
 
+#: The full-space solver with BDF2 (second order, `solvers.integrators`) instead of the reference's backward Euler, at
+#: the same time step: how much of the reference's time error the integrator alone removes.
+BDF2 = Variant("full", {}, label="bdf2", overrides={"time.integrator": "bdf2"})
+
 VARIANTS: dict[str, list[Variant]] = {
     "licrom": [Variant("licrom", LICROM, label="r20")],
     "licrom-affine": [Variant("licrom", LICROM_AFFINE, label="affine-r24"),
@@ -47,11 +51,14 @@ VARIANTS: dict[str, list[Variant]] = {
     # LiCROM's rank swept (a grid over the solver's declared parameters; not in the default set)
     "licrom-rank": grid("licrom", "affine-r{r}", LICROM_AFFINE, r=[12, 24, 48]),
     # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh
-    # (the other mesh of the shape, carried onto the reference mesh for the comparison)
+    # (the other mesh of the shape, carried onto the reference mesh for the comparison), the second-order integrator
     "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3"),
                    Variant("full", {}, label="dt2x", dt_scale=2.0),
                    DT_HALF,
-                   Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)],
+                   Variant("full", {}, label="other-mesh", remesh="alt", transfer=True),
+                   BDF2],
+    # any suite with the full-space solver under BDF2 beside its backward-Euler reference
+    "bdf2": [BDF2],
     # the barrier contact law (same friction potential) beside the penalty law of the reference
     "barrier": [Variant("full", {}, label="barrier", overrides={"contact.law": "barrier"})],
     # hard suite: every reduced solver family and LiCROM's variants, LiCROM+affine under both contact laws (no

@@ -43,7 +43,8 @@ optional and defaults to the dataclass default unless said otherwise below):
                   `clearance = false` keeps the mesh where it is (Initial.clearance = None). Without a plane
                   there is nothing to measure a clearance from: it defaults to false and a number is an error.
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
-    [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer)
+    [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
+                  integrator = "backward-euler" (default) | "bdf2"
     [effects]     gravity, elasticity, contact, friction, damping, viscosity (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
@@ -56,7 +57,8 @@ allowed: the term is then identically zero and a solver builds nothing for it.
 
 `scenario_to_dict` writes the canonical dict of a scenario (every field explicit, plane normalised, effects
 resolved; the material's viscosity and damping ratio only where given, and the viscosity effect only where the
-material has one of them, so that undamped scenes keep the hashes they had before material damping existed);
+material has one of them, so that undamped scenes keep the hashes they had before material damping existed;
+likewise `time.integrator` only where it is not the default, backward Euler);
 `scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a scenario built or
 modified in code. `scenario_hash` hashes what is simulated, not what it is called.
 """
@@ -76,7 +78,8 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import ScenarioError, checked_table
-from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec, Vec3
+from scenarios.model import (INTEGRATORS, Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
+                             Vec3)
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
             "effects")
@@ -85,7 +88,7 @@ MATERIAL_KEYS = ("density", "youngs_modulus", "poisson_ratio", "viscosity", "dam
 PLANE_KEYS = ("normal", "offset", "friction", "slope_deg", "downhill")
 CONTACT_KEYS = ("law", "stiffness", "damping", "friction_stiffness", "barrier_distance", "barrier_stiffness")
 INITIAL_KEYS = ("clearance", "rotation", "translation", "velocity", "angular_velocity", "squash")
-TIME_KEYS = ("dt", "duration", "frame_every")
+TIME_KEYS = ("dt", "duration", "frame_every", "integrator")
 EFFECT_KEYS = ("gravity", "elasticity", "contact", "friction", "damping", "viscosity")
 CONTACT_LAWS = ("penalty", "barrier")
 DOWNHILL_AXES = {"x": (1.0, 0.0), "-x": (-1.0, 0.0), "z": (0.0, 1.0), "-z": (0.0, -1.0)}
@@ -117,7 +120,8 @@ def scenario_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 
 
 def scenario_to_dict(s: Scenario) -> dict[str, Any]:
-    """The canonical dict of a scenario: every field explicit, TOML types only (`false` for absent values)."""
+    """The canonical dict of a scenario: every field explicit (but `time.integrator` at its default, see the module
+    docstring), TOML types only (`false` for absent values)."""
     mesh: dict[str, Any] = ({"path": s.mesh.path} if s.mesh.path
                             else {"name": s.mesh.name, "resolution": s.mesh.resolution})
     mesh["scale"] = s.mesh.scale
@@ -137,7 +141,7 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         "plane": plane,
         "contact": _as_dict(s.contact, CONTACT_KEYS) | ({"stiffness": "auto"} if s.contact.stiffness is None else {}),
         "initial": initial,
-        "time": _as_dict(s.time, TIME_KEYS),
+        "time": _as_dict(s.time, TIME_KEYS if s.time.integrator != TimeSpec.integrator else TIME_KEYS[:-1]),
         "effects": {k: v for k, v in _as_dict(s.effects, EFFECT_KEYS).items()
                     if k != "viscosity" or _damped(s.material)},
     }
@@ -382,7 +386,10 @@ def _time(raw: object) -> TimeSpec:
     frame_every = t.get("frame_every", d.frame_every)
     if isinstance(frame_every, bool) or not isinstance(frame_every, numbers.Integral) or frame_every < 1:
         raise ScenarioError("time.frame_every", frame_every, "expected an integer >= 1")
-    return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every))
+    integrator = _string(t.get("integrator", d.integrator), "time.integrator")
+    if integrator not in INTEGRATORS:
+        raise ScenarioError("time.integrator", integrator, f"expected one of {list(INTEGRATORS)}")
+    return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every), integrator=integrator)
 
 
 def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact, material: Material) -> Effects:

@@ -11,6 +11,10 @@ from dataclasses import dataclass, field, replace
 
 Vec3 = tuple[float, float, float]
 
+#: The time integrators of the implicit solvers (`solvers.integrators`): backward Euler (first order, the paper's)
+#: and BDF2 (second order, started by one backward-Euler step).
+INTEGRATORS = ("backward-euler", "bdf2")
+
 
 @dataclass(frozen=True)
 class MeshSpec:
@@ -104,11 +108,13 @@ class Initial:
 
 @dataclass(frozen=True)
 class TimeSpec:
-    """Time stepping: step dt [s], duration [s], store a frame every `frame_every` steps."""
+    """Time stepping: step dt [s], duration [s], store a frame every `frame_every` steps, and the `integrator` of
+    the implicit solvers (one of `INTEGRATORS`)."""
 
     dt: float = 0.01
     duration: float = 1.0
     frame_every: int = 1
+    integrator: str = "backward-euler"
 
     @property
     def n_steps(self) -> int:

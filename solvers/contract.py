@@ -1,9 +1,10 @@
 """The solver contract every solver of the benchmark follows (in the spirit of benchopt's solver classes and of
 Newton's `solver.step(state_in, state_out, dt)`).
 
-A solver is a `Solver` subclass that declares its `name` and its `parameters` (name -> default; a variant sets
-some of them), and implements `setup(model)` (untimed: build what the run needs on this model) and
-`step(state_in, state_out, dt) -> StepStats`. Optional: `skip(model)` says why a scene cannot be run, `prepare`
+A solver is a `Solver` subclass that declares its `name`, its `parameters` (name -> default; a variant sets
+some of them) and the time `integrators` it implements (`scenarios.model.INTEGRATORS`; backward Euler unless it
+says more: a scene asking for another is skipped with the reason), and implements `setup(model)` (untimed: build
+what the run needs on this model) and `step(state_in, state_out, dt) -> StepStats`. Optional: `skip(model)` says why a scene cannot be run, `prepare`
 does offline work once per mesh shape (training, bases, cubature) writing its artefacts into the run's output
 folder, `initial(state)` adds a solver's own coordinates to the initial state, and `describe()` gives provenance
 for the run's stats. Registering the class (`solvers.registry.register`) is all the harness needs: the CLI, the
@@ -37,6 +38,7 @@ class Solver(ABC):
 
     name: ClassVar[str] = ""
     parameters: ClassVar[Mapping[str, Any]] = {}
+    integrators: ClassVar[tuple[str, ...]] = ("backward-euler",)
 
     def __init__(self, device: str = "cpu", **params: Any) -> None:
         unknown = sorted(set(params) - set(self.parameters))

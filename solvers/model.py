@@ -23,18 +23,26 @@ from solvers.physics.viscosity import viscosity_for_damping_ratio
 class State:
     """Positions x (n, 3) [m] and velocities v (n, 3) [m/s] at time t [s]; a solver with latent coordinates (a
     reduced one) also sets q (r,) and their rate qdot (r,) [1/s] of the same state (None: not in its subspace yet,
-    e.g. an initial state, which it then projects)."""
+    e.g. an initial state, which it then projects). `previous` is the state the step that made this one started
+    from (its own `previous` dropped), what a multistep integrator needs (`solvers.integrators`); None for an
+    initial state."""
 
     x: np.ndarray
     v: np.ndarray
     t: float = 0.0
     q: np.ndarray | None = None
     qdot: np.ndarray | None = None
+    previous: State | None = None
 
     def copy(self) -> "State":
         """A deep copy."""
         cp = lambda a: None if a is None else a.copy()  # noqa: E731
-        return State(self.x.copy(), self.v.copy(), self.t, cp(self.q), cp(self.qdot))
+        prev = None if self.previous is None else self.previous.without_history().copy()
+        return State(self.x.copy(), self.v.copy(), self.t, cp(self.q), cp(self.qdot), prev)
+
+    def without_history(self) -> State:
+        """The same state (its arrays shared, not copied) without `previous`: what the next state keeps of it."""
+        return State(self.x, self.v, self.t, self.q, self.qdot)
 
 
 @dataclass

@@ -30,14 +30,16 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
     of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]), the material's Kelvin-Voigt
     `viscosity` [Pa s] (0 when undamped; resolved from the scenario's `damping_ratio`, recorded too, where it gave
-    one), the solver's `describe()`,
-    `failed` and `failure` (reason) for a run that diverged. Raises `Skipped` for a scene the solver declines.
+    one), the time `integrator`, the solver's `describe()`, `failed` and `failure` (reason) for a run that diverged.
+    Raises `Skipped` for a scene the solver declines, or whose integrator it does not implement.
     """
     params = dict(params or {})
     t0 = time.perf_counter()
     model = build_model(scenario, tet_mesh if tet_mesh is not None else load_mesh(mesh or scenario.mesh))
     stepper = get_solver(solver)(device=device, **params)
-    reason = stepper.skip(model)
+    integrator = scenario.time.integrator
+    reason = (f"time.integrator = {integrator!r}: solver {solver!r} implements {list(stepper.integrators)}"
+              if integrator not in stepper.integrators else stepper.skip(model))
     if reason:
         raise Skipped(reason)
     stepper.setup(model)
@@ -49,7 +51,7 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     meta = {"solver": solver, "params": params, "device": device, "mesh": (mesh or scenario.mesh).key}
     stats: dict = {"setup_s": setup_s, "warmup_s": warmup_s, "device": device, "solver": solver, "params": params,
                    "mesh": (mesh or scenario.mesh).key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
-                   "terms": list(model.terms), "contact_stiffness": model.contact.stiffness,
+                   "terms": list(model.terms), "integrator": integrator, "contact_stiffness": model.contact.stiffness,
                    "viscosity": model.viscosity, "damping_ratio": model.damping_ratio, "failed": False,
                    "failure": ""}
     stats.update(stepper.describe())

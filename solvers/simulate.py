@@ -5,7 +5,9 @@ A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats a
 included), the trajectory stores them. A step that fails (Newton not converged, or a non-finite state) is redone
 from the same start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the
 attempts' iterations and wall time and counts the retries. A step still non-finite after that ends the run: the
-loop raises `Diverged` carrying what was computed so far.
+loop raises `Diverged` carrying what was computed so far. Each state a solver returns remembers the one its step
+started from (`State.previous`), so BDF2's history follows the steps actually taken: a retried step restarts it
+with a backward-Euler half step (`solvers.integrators`).
 """
 
 from __future__ import annotations

@@ -146,7 +146,10 @@ NOT_REPEATABLE = {"setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p
 def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
     """The quick suite's references (one training member, the held-out one) and two reduced variants (a LiCROM
     checkpoint and a POD basis, both trained on the client and carried to the workers): the client's store gets
-    every run, identical to a process-pool run's (trajectories, bases, metrics)."""
+    every run, identical to a process-pool run's (trajectories, bases, metrics). The full-space runs are bitwise
+    equal (MKL's reproducible mode, `solvers.linalg`); a reduced run's dense products (torch evaluating the neural
+    field's basis, BLAS) may round differently in a worker whose thread pools Dask's nanny started single-threaded
+    than in one limited at run time, so its basis and states are compared to round-off (1e-12 of their size)."""
     variants = [Variant("licrom", LICROM | {"epochs": 2}, label="r20"), Variant("pod", {"r": 8}, label="r8")]
     only = "quick/p[14]_mu0.[13]"  # p1_mu0.1 (train) and p4_mu0.3 (test)
     local = pd.read_csv(run_suite("quick", tmp_path / "process", variants, jobs=2, executor="process",
@@ -165,7 +168,11 @@ def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
         arrays_a, arrays_b = _trajectory_arrays(a), _trajectory_arrays(b)
         assert arrays_a.keys() == arrays_b.keys()
         for k in arrays_a:
-            assert np.array_equal(arrays_a[k], arrays_b[k]), (index, k)
+            if index[1] == "reference" or k not in ("x", "v", "q", "basis"):
+                assert np.array_equal(arrays_a[k], arrays_b[k]), (index, k)
+            else:
+                scale = np.abs(arrays_a[k]).max() + 1.0
+                assert np.abs(arrays_a[k] - arrays_b[k]).max() <= 1e-12 * scale, (index, k)
         assert (a.basis is None) == (b.basis is None) == (index[1] == "reference"), index
     assert remote["proj_rmse_rel"].notna().sum() == 4  # the reduced rows' projection error, from the stored bases
     compared = [c for c in local.columns if c not in NOT_REPEATABLE | {"run"}]  # a model's key has its path

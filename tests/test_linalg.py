@@ -52,6 +52,7 @@ def contact_hessians():
         assert (x[model.points] @ model.plane_normal < model.plane_offset).any()  # in contact
         solver.x_hat.assign(x + h * v)
         solver.x_prev.assign(x)
+        solver.x_bar.assign(x)  # backward Euler
         solver._lag_normal_pressure(State(x, v))
         solver.x.assign(x + h * v)
         solver.gradient_hessian(solver.x, h)

@@ -242,7 +242,8 @@ def test_hash_is_stable_across_spellings_and_names() -> None:
     ("plane.friction", 0.3), ("plane.offset", -1.0), ("plane.normal", [1.0, 5.0, 2.1]), ("plane", False),
     ("contact.law", "barrier"), ("contact.stiffness", 2e7), ("contact.damping", 10.0),
     ("initial.clearance", 0.06), ("initial.rotation", [0.0, 0.0, 1.0]), ("initial.velocity", [0.0, 0.0, 1e-3]),
-    ("time.dt", 0.005), ("time.duration", 2.0), ("time.frame_every", 2), ("effects.friction", False),
+    ("time.dt", 0.005), ("time.duration", 2.0), ("time.frame_every", 2), ("time.integrator", "bdf2"),
+    ("effects.friction", False),
     ("gravity", [0.0, -9.8, 0.0]), ("mesh.resolution", "medium"), ("mesh.scale", 2.0),
 ])
 def test_hash_changes_with_what_is_simulated(path: str, value: object) -> None:
@@ -250,6 +251,13 @@ def test_hash_changes_with_what_is_simulated(path: str, value: object) -> None:
     if path == "plane":
         changed = without(changed, "initial.clearance")
     assert scenario_hash(scenario_from_dict(changed)) != scenario_hash(scenario_from_dict(VALID))
+
+
+def test_the_default_integrator_keeps_the_hashes_from_before_the_field() -> None:
+    explicit = scenario_from_dict(with_(VALID, "time.integrator", "backward-euler"))
+    assert explicit == scenario_from_dict(VALID) and explicit.time.integrator == "backward-euler"
+    assert "integrator" not in scenario_to_dict(explicit)["time"]
+    assert scenario_to_dict(scenario_from_dict(with_(VALID, "time.integrator", "bdf2")))["time"]["integrator"] == "bdf2"
 
 
 def test_hash_follows_mesh_file_content_not_location(tmp_path: Path) -> None:
@@ -404,6 +412,7 @@ def test_bad_field_is_named_with_its_value(path: str, value: object, field: str)
      "True"),
     (with_(with_(VALID, "effects.contact", False), "effects.damping", True), "effects.damping", "True"),
     (with_(VALID, "material.density", 10**400), "material.density", "1000"),
+    (with_(VALID, "time.integrator", "bdf3"), "time.integrator", "'bdf3'"),
     ([1, 2], "<scenario>", "[1, 2]"),
 ])
 def test_bad_scenario_message(d: object, field: str, shown: str) -> None:
@@ -561,7 +570,8 @@ def valid_dicts(draw: st.DrawFn) -> dict[str, Any]:
             "law": st.sampled_from(["penalty", "barrier"]), "stiffness": finite(1e-3, 1e12),
             "damping": finite(0.0, 1e6), "friction_stiffness": finite(1e-3, 1e12),
             "barrier_distance": finite(1e-9, 1.0), "barrier_stiffness": finite(1e-3, 1e12)}),
-        "time": st.fixed_dictionaries({}, optional={"dt": finite(1e-4, 0.1), "frame_every": st.integers(1, 10)}),
+        "time": st.fixed_dictionaries({}, optional={"dt": finite(1e-4, 0.1), "frame_every": st.integers(1, 10),
+                                                    "integrator": st.sampled_from(["backward-euler", "bdf2"])}),
     }))
     has_plane = d.get("plane", {}) is not False
     barrier = d.get("contact", {}).get("law") == "barrier"
@@ -609,6 +619,7 @@ BAD_VALUES: dict[str, list[object]] = {
     "time.dt": NOT_A_NUMBER + [0, -0.01],
     "time.duration": NOT_A_NUMBER + [0, -1.0],
     "time.frame_every": [0, -1, 1.5, True, "2", None],
+    "time.integrator": ["bdf3", "euler", "", 2, None],
     "mesh.name": ["teapot", 3, None],
     "mesh.resolution": ["ultra", 3, None],
     "mesh.scale": NOT_A_NUMBER + [0, -2.0],

@@ -26,8 +26,9 @@ BARRIER = replace(incline(10.0, 0.3), contact=Contact(law="barrier"),
                   initial=Initial(clearance=0.0002, rotation=(0.0, 0.0, -10.0)))
 
 
-def _scene(sc: Scenario, block, lift: float) -> tuple[Model, T.StepData, np.ndarray]:
-    """A model, a step's constants and a perturbed point x near the plane (contact, damping, friction active)."""
+def _scene(sc: Scenario, block, lift: float, bdf2: bool = False) -> tuple[Model, T.StepData, np.ndarray]:
+    """A model, a step's constants and a perturbed point x near the plane (contact, damping, friction active);
+    `bdf2`: a BDF2 step's constants (x_bar away from x_prev, h_eff = 2/3 h), else backward Euler's."""
     model = build_model(sc, block)
     rng = np.random.default_rng(3)
     h = 0.01
@@ -37,12 +38,17 @@ def _scene(sc: Scenario, block, lift: float) -> tuple[Model, T.StepData, np.ndar
     fn = lagged_pressure(c.law, x_prev[model.points], v[model.points], model.plane_normal, model.plane_offset,
                          c.stiffness, model.contact_damping, c.barrier_stiffness, c.barrier_distance)
     x = x_prev + 0.01 * h * rng.standard_normal(x_prev.shape) + lift * model.plane_normal
-    return model, T.StepData(x_prev + h * v, x_prev, h, fn), x
+    if not bdf2:
+        return model, T.StepData(x_prev + h * v, x_prev, h, fn), x
+    x_bar, h_eff = x_prev + 0.02 * h * rng.standard_normal(x_prev.shape), 2.0 / 3.0 * h
+    return model, T.StepData(x_bar + h_eff * v, x_prev, h, fn, x_bar=x_bar, h_eff=h_eff), x
 
 
-@pytest.fixture(params=["penalty", "barrier"])
+@pytest.fixture(params=["penalty", "barrier", "penalty-bdf2"])
 def scene(request, block):
-    return _scene(PENALTY, block, -0.002) if request.param == "penalty" else _scene(BARRIER, block, 0.0)
+    if request.param == "barrier":
+        return _scene(BARRIER, block, 0.0)
+    return _scene(PENALTY, block, -0.002, bdf2=request.param == "penalty-bdf2")
 
 
 def test_every_term_of_the_scene_is_active(scene):
@@ -75,11 +81,12 @@ def test_the_sum_of_the_references_is_the_warp_evaluation(scene):
     solver = FullSpaceSolver(model)
     solver.x_hat.assign(step.x_hat)
     solver.x_prev.assign(step.x_prev)
+    solver.x_bar.assign(step.x_bar)
     solver.fn.assign(step.fn)
     solver.x.assign(x)
     E = T.reference_energy(model, step, x)
-    assert solver.energy(solver.x, step.h) == pytest.approx(E, rel=1e-12)
-    solver.gradient_hessian(solver.x, step.h)
+    assert solver.energy(solver.x, step.h_eff) == pytest.approx(E, rel=1e-12)
+    solver.gradient_hessian(solver.x, step.h_eff)
     g = T.reference_gradient(model, step, x)
     assert np.abs(solver.grad.numpy() - g).max() <= 1e-10 * np.abs(g).max()
     H = T.reference_hessian(model, step, x).toarray()

@@ -87,3 +87,15 @@ def test_a_solver_rejects_parameters_it_does_not_declare(ballistic):
 def test_registering_a_non_solver_fails_clearly():
     with pytest.raises(TypeError, match="Solver subclass"):
         registry.register(Path)
+
+
+def test_a_scene_whose_integrator_the_solver_lacks_is_skipped_with_the_reason(ballistic):
+    from scenarios.model import MeshSpec, Scenario, TimeSpec
+    from solvers.run import Skipped, run_scenario
+
+    sc = Scenario(name="fall", mesh=MeshSpec("block", "coarse"), plane=None,
+                  time=TimeSpec(dt=0.01, duration=0.02, integrator="bdf2"))
+    with pytest.raises(Skipped, match=r"time.integrator = 'bdf2': solver 'ballistic' implements \['backward-euler'\]"):
+        run_scenario(sc, "ballistic")
+    _, stats = run_scenario(sc, "full")  # the full-space solver implements BDF2 and says it ran it
+    assert stats["integrator"] == "bdf2" and not stats["failed"]

@@ -223,6 +223,7 @@ def inertia_gravity_kernel(
 def penalty_contact_kernel(
     x: wp.array(dtype=wp.vec3d),
     x_prev: wp.array(dtype=wp.vec3d),
+    x_bar: wp.array(dtype=wp.vec3d),
     points: wp.array(dtype=wp.int32),
     area: wp.array(dtype=f64),
     normal: wp.vec3d,
@@ -238,13 +239,14 @@ def penalty_contact_kernel(
 ):
     """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian.
 
-    Damping acts at points that penetrated at the start of the step (x_prev below the plane)."""
+    Damping acts at points that penetrated at the start of the step (x_prev below the plane), with the velocity
+    (x - x_bar) / h of the integrator (h its effective step)."""
     p = wp.tid()
     i = points[p]
     c = offset - wp.dot(normal, x[i])
     vn = f64(0.0)
     if wp.dot(normal, x_prev[i]) < offset:
-        vn = wp.min(f64(0.0), wp.dot(x[i] - x_prev[i], normal) / h)
+        vn = wp.min(f64(0.0), wp.dot(x[i] - x_bar[i], normal) / h)
     if c <= f64(0.0) and vn == f64(0.0):
         return
     c = wp.max(c, f64(0.0))
@@ -298,7 +300,7 @@ def barrier_contact_kernel(
 @wp.kernel
 def friction_kernel(
     x: wp.array(dtype=wp.vec3d),
-    x_prev: wp.array(dtype=wp.vec3d),
+    x_bar: wp.array(dtype=wp.vec3d),
     points: wp.array(dtype=wp.int32),
     area: wp.array(dtype=f64),
     fn: wp.array(dtype=f64),
@@ -312,12 +314,13 @@ def friction_kernel(
     energy: wp.array(dtype=f64),
     mode: int,
 ):
-    """Lagged friction potential A h mu f_n f0(|v_t|) (see solvers.physics.friction); mode 0 energy, 1 grad+H."""
+    """Lagged friction potential A h mu f_n f0(|v_t|) (see solvers.physics.friction), v = (x - x_bar) / h with the
+    integrator's x_bar and effective step h; mode 0 energy, 1 grad+H."""
     p = wp.tid()
     if fn[p] <= f64(0.0):
         return
     i = points[p]
-    v = (x[i] - x_prev[i]) / h
+    v = (x[i] - x_bar[i]) / h
     vt = v - wp.dot(v, normal) * normal
     s = wp.length(vt)
     A = area[p]

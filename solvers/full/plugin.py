@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from scenarios.model import INTEGRATORS
 from solvers.contract import Solver
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.model import Model, State
@@ -9,11 +10,12 @@ from solvers.step_stats import StepStats
 
 
 class FullSpace(Solver):
-    """Backward Euler on every vertex (`solvers.full.solver.FullSpaceSolver`): Newton tolerance `tol` [1/s,
-    relative to L], `linear` solve (`auto`, `direct`, `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter`
-    Newton iterations per attempt."""
+    """Implicit time stepping on every vertex (`solvers.full.solver.FullSpaceSolver`; backward Euler or BDF2, the
+    scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear` solve (`auto`, `direct`,
+    `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter` Newton iterations per attempt."""
 
     name = "full"
+    integrators = INTEGRATORS
     parameters = {"tol": NewtonSettings.tol, "linear": NewtonSettings.linear, "max_iter": NewtonSettings.max_iter}
 
     def setup(self, model: Model) -> None:
@@ -23,7 +25,7 @@ class FullSpace(Solver):
             tol=p["tol"], linear=p["linear"], max_iter=p["max_iter"]))
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
-        """One Newton-solved backward-Euler step."""
+        """One Newton-solved step of the scenario's integrator."""
         return self.solver.step(state_in, state_out, dt)
 
     def describe(self) -> dict:

@@ -1,11 +1,13 @@
-"""Full-space backward Euler as energy minimisation, solved by Newton's method with warp kernels.
+"""Full-space implicit time stepping as energy minimisation, solved by Newton's method with warp kernels.
 
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
-the vertex positions x (n, 3), x_hat = x^n + h v^n (docs/design.md, "Physics"). Only the terms the scene calls for are
-built (`solvers.physics.terms.terms_of`); an absent term launches no kernel. Newton directions come from the
-projected (PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E,
-in the shared loop of `solvers.newton`; the barrier law also caps the step so that no contact point crosses the
-plane. Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal.
+the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with BDF2 (the
+scenario's `time.integrator`) h is the effective step h_eff = 2/3 dt and x_hat = x_bar + h_eff v_bar
+(`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`); an absent
+term launches no kernel. Newton directions come from the projected (PSD) Hessian, assembled into a fixed block-sparse
+pattern, and a backtracking (Armijo) line search on E, in the shared loop of `solvers.newton`; the barrier law also
+caps the step so that no contact point crosses the plane. Convergence is measured in velocity units:
+|dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import warp.optim.linear as wpl
 import warp.sparse as wps
 
 from solvers.full.assembly import ElementRanges, thread_budget
+from solvers.integrators import lagged, previous_step
 from solvers.linalg import make_factoriser
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, feasible_step, minimise
@@ -77,7 +80,10 @@ class BlockPattern:
 
 
 class FullSpaceSolver:
-    """Newton on the backward-Euler incremental potential, kernels on `device` (`cpu` or `cuda`)."""
+    """Newton on the incremental potential of the scenario's integrator, kernels on `device` (`cpu` or `cuda`).
+
+    Per step it holds the integrator's constants: warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar,
+    and the effective step h_eff [s] (`solvers.integrators`)."""
 
     name = "full"
 
@@ -92,6 +98,8 @@ class FullSpaceSolver:
         if linear not in ("direct", "pardiso", "superlu", "cg"):
             raise ValueError(f"solver.linear = {linear!r}: expected 'auto', 'direct', 'pardiso', 'superlu' or 'cg'")
         self.law = model.contact.law
+        self.integrator = model.scenario.time.integrator
+        self.h_eff = 0.0
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
         self.terms = terms_of(model)
@@ -114,9 +122,7 @@ class FullSpaceSolver:
         self.x_trial = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_hat = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_prev = wp.zeros(model.n, dtype=wp.vec3d, device=d)
-        # the dissipative terms' velocity (x - x_bar) / h_eff (backward Euler: x^n and h), set by `step`
         self.x_bar = wp.zeros(model.n, dtype=wp.vec3d, device=d)
-        self.h_eff = 0.0
         self.grad = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.values = wp.zeros(self.pattern.nnzb, dtype=wp.mat33d, device=d)
         self.elem_blocks = wp.zeros(16 * model.tets.shape[0], dtype=wp.mat33d, device=d)
@@ -187,25 +193,31 @@ class FullSpaceSolver:
         self.fn.assign(np.ascontiguousarray(fn))
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
-        """Advance state_in by dt into state_out (backward Euler); returns the step's statistics."""
+        """Advance state_in by dt into state_out (the scenario's integrator; BDF2 uses state_in.previous when it is
+        one step dt back); returns the step's statistics."""
         t0 = time.perf_counter()
-        s, m, h = self.settings, self.model, dt
-        x_hat = state_in.x + h * state_in.v
+        s, m = self.settings, self.model
+        prev = previous_step(state_in, dt)
+        lag = lagged(self.integrator, state_in.x, state_in.v, None if prev is None else prev.x,
+                     None if prev is None else prev.v, dt)
+        h = self.h_eff = lag.h_eff
+        x_hat = lag.y_tilde
         self.x_hat.assign(x_hat)
         self.x_prev.assign(state_in.x)
-        self.x_bar.assign(state_in.x)
-        self.h_eff = h
+        self.x_bar.assign(lag.y_bar)
         if m.has("friction"):
             self._lag_normal_pressure(state_in)
         x = x_hat.copy()
         if m.has("contact") and self.law == "barrier":
-            x = state_in.x.copy() + h * state_in.v * self._max_feasible_step(state_in.x, h * state_in.v)
+            reach = (lag.y_bar - state_in.x) + h * lag.v_bar  # x_hat - x^n (h v^n exactly for backward Euler)
+            x = state_in.x.copy() + reach * self._max_feasible_step(state_in.x, reach)
         res = minimise(_StepProblem(self, h), x, s.tol * m.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
         x = res.y
         self.x.assign(x)
         state_out.x = x
-        state_out.v = (x - state_in.x) / h
-        state_out.t = state_in.t + h
+        state_out.v = lag.velocity(x)
+        state_out.t = state_in.t + dt
+        state_out.previous = state_in.without_history()
         return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
                          res.linear_iters, res.stalls)
 

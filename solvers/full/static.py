@@ -40,6 +40,7 @@ def static_equilibrium(solver: FullSpaceSolver, fixed: np.ndarray, tol: float = 
     held at rest; stops when |dx|_inf < tol * L. Returns (x, Newton iterations)."""
     m = solver.model
     solver.x_prev.assign(m.X)
+    solver.x_bar.assign(m.X)
     res = minimise(_StaticProblem(solver, np.repeat(~fixed, 3)), m.X.copy(), tol * m.L, max_iter)
     if not res.converged:
         raise RuntimeError(f"static equilibrium did not converge in {res.iters} Newton iterations")

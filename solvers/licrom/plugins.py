@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.atomic import write_json_atomic
+from scenarios.model import INTEGRATORS
 from solvers.baselines import affine_basis, pod_basis, project
 from solvers.contract import Solver
 from solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
@@ -61,7 +62,9 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
 class _Reduced(Solver):
     """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
     Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
-    `projected_gradient`), seed."""
+    `projected_gradient`), seed. Either integrator (the scenario's `time.integrator`) with either scheme."""
+
+    integrators = INTEGRATORS
 
     @abstractmethod
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
@@ -90,7 +93,7 @@ class _Reduced(Solver):
         return self.solver.project(state)
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
-        """One reduced backward-Euler step."""
+        """One reduced step of the scenario's integrator."""
         return self.solver.step(state_in, state_out, dt)
 
     def describe(self) -> dict:

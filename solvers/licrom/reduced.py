@@ -1,10 +1,14 @@
-"""LiCROM's online latent dynamics: backward Euler in the linear subspace x = X + W q (docs/design.md, "Solvers").
+"""LiCROM's online latent dynamics: implicit time stepping in the linear subspace x = X + W q (docs/design.md,
+"Solvers").
 
 Each step minimises the incremental potential of the full-space solver restricted to the subspace,
 
     E(q) = 1/(2h^2) (q - q_hat)^T M_r (q - q_hat) - g_r . q + sum_c w_c V_c Psi(F_c(q)) + E_contact + D_friction,
 
-with q_hat = q^n + h qdot^n, M_r = W^T M W (lumped M, factorised once), g_r = sum_i m_i W_i^T g, cubature tets
+with q_hat = q^n + h qdot^n for backward Euler; with BDF2 (the scenario's `time.integrator`), h is the effective
+step h_eff = 2/3 dt and q_hat = q_bar + h_eff qdot_bar, the dissipative terms taking their velocity from the decoded
+x_bar = X + W q_bar (`solvers.integrators`: the formulas hold in latent coordinates, the decoding being linear).
+M_r = W^T M W (lumped M, factorised once), g_r = sum_i m_i W_i^T g, cubature tets
 (c, w_c) whose F_c(q) = F_c(0) + B_c q is linear in q (B_c = dvec F_c/dq constant), and the contact and friction
 laws of solvers/physics at the surface sample points x_p = X_p + W_p q (gradient W_p^T g_p, Hessian
 W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the step, as the full solver does.
@@ -47,6 +51,7 @@ from scipy.linalg import cho_factor, cho_solve, eigh
 
 from solvers.baselines import project
 from solvers.licrom import kernels as K
+from solvers.integrators import lagged, previous_step
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, minimise
@@ -185,17 +190,19 @@ def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.nda
 
 @dataclass
 class ReducedStep:
-    """Per-step constants: dt h [s], q^n and q_hat (r,), contact points at the start x_prev (p, 3) [m], the
-    lagged normal pressure fn (p,) [Pa] (None without friction), and the integrator's data for the dissipative
-    body terms: their velocity is W (q - q_bar) / h_eff with q_bar (r,) and h_eff [s] (backward Euler: q^n, h)."""
+    """Per-step constants: dt h [s] and the integrator's effective step h_eff [s], q^n, q_bar and the inertial
+    target q_hat = q_bar + h_eff qdot_bar (r,), the contact points at the start x_prev (p, 3) [m] and at q_bar, x_bar
+    (p, 3) [m], and the lagged normal pressure fn (p,) [Pa] (None without friction). Backward Euler: h_eff = h,
+    q_bar = q^n. The dissipative terms' velocity is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the points)."""
 
     h: float
+    h_eff: float
     q_prev: np.ndarray
+    q_bar: np.ndarray
     q_hat: np.ndarray
     x_prev: np.ndarray
+    x_bar: np.ndarray
     fn: np.ndarray | None
-    q_bar: np.ndarray
-    h_eff: float
 
 
 @dataclass
@@ -235,7 +242,8 @@ class _SamplePoints:
 
 
 class ReducedSolver:
-    """Backward Euler in the subspace of a basis W (n, 3, r); see the module docstring.
+    """Implicit time stepping (the scenario's integrator) in the subspace of a basis W (n, 3, r); see the module
+    docstring.
 
     model: the scene on the mesh W was evaluated on; cubature: (tet ids, weights) or None for every tet (weight
     1); scheme: "newton" or "projected_gradient"; device: where the taichi kernels run ("cpu" or "cuda");
@@ -260,6 +268,7 @@ class ReducedSolver:
         if name is not None:
             self.name = name
         self.law = model.contact.law
+        self.integrator = model.scenario.time.integrator
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
         terms = terms_of(model)
         missing = [t.name for t in terms if not isinstance(t, (BodyTerm, PointTerm))]
@@ -288,7 +297,7 @@ class ReducedSolver:
         x = rm.point_positions(q)
         E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
         for term in self.point_terms:
-            e, gp, Hp = term.at_points(m, x, st.x_prev, rm.area, st.fn, st.h, order)
+            e, gp, Hp = term.at_points(m, x, st.x_prev, st.x_bar, rm.area, st.fn, st.h_eff, order)
             E += e
             if order >= 1:
                 g += gp
@@ -325,17 +334,21 @@ class ReducedSolver:
         return g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
-    def _begin(self, latent: ReducedState, h: float) -> ReducedStep:
-        """Per-step constants; the friction normal pressure is lagged from the start of the step."""
+    def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None) -> ReducedStep:
+        """Per-step constants of the integrator (BDF2 with `previous`, the latent state one step h before, else
+        backward Euler); the friction normal pressure is lagged from the start of the step."""
         m, rm = self.model, self.reduced
+        lag = lagged(self.integrator, latent.q, latent.qdot, None if previous is None else previous.q,
+                     None if previous is None else previous.qdot, h)
         x_prev = rm.point_positions(latent.q)
+        x_bar = x_prev if lag.y_bar is latent.q else rm.point_positions(lag.y_bar)  # backward Euler: q_bar = q^n
         fn = None
         if m.has("friction"):
             c = m.contact
             v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
             fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness,
                                     m.contact_damping, c.barrier_stiffness, c.barrier_distance)
-        return ReducedStep(h, latent.q, latent.q + h * latent.qdot, x_prev, fn, latent.q, h)
+        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, x_prev, x_bar, fn)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
         """|W dq|_inf / h over all mesh vertices [m/s]."""
@@ -377,11 +390,11 @@ class ReducedSolver:
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
         for it in range(1, self.max_iter + 1):
-            rhs = self.alpha * st.h**2 * self._sample_gradient_rhs(q, st)
+            rhs = self.alpha * st.h_eff**2 * self._sample_gradient_rhs(q, st)
             dq = -cho_solve(self.samples.S_cho, rhs, check_finite=False)
             dq *= self._max_feasible_step(q, dq)
             q = q + dq
-            residual = self._velocity_norm(dq, st.h)
+            residual = self._velocity_norm(dq, st.h_eff)
             if residual < tol_v:
                 return NewtonResult(q, it, residual, 0, 0, 0, True)
         return NewtonResult(q, it, residual, 0, 0, 0, False)
@@ -389,14 +402,15 @@ class ReducedSolver:
     def projected_gradient_alpha_limit(self, state: State, dt: float) -> float:
         """Largest stable step size alpha of the projected-gradient scheme at `state` (projected to the subspace):
         2 / lambda_max(h^2 S^-1 H), H the PSD-projected Hessian of the scheme's incremental potential (inertia
-        S / h^2 on the sample points) at q_hat. Above it the iteration diverges along the stiffest mode; below it
-        the softest mode converges like (1 - alpha)^k."""
+        S / h^2 on the sample points) at q_hat, for a backward-Euler step of h = dt. Above it the iteration diverges
+        along the stiffest mode; below it the softest mode converges like (1 - alpha)^k. A BDF2 step (h = h_eff =
+        2/3 dt) has a larger limit: in h^2 S^-1 H the inertial part stays the identity and the rest shrinks."""
         rm = self.reduced
         samples = self.samples if self.samples is not None else _SamplePoints.build(rm)
         latent = ReducedState(rm.project(state.x - self.model.X), rm.project(state.v), state.t)
         st = self._begin(latent, dt)
-        H = self.gradient_hessian(st.q_hat, st)[1] + (samples.S - rm.M_r) / dt**2
-        return 2.0 / float(eigh(dt**2 * H, samples.S, eigvals_only=True)[-1])
+        H = self.gradient_hessian(st.q_hat, st)[1] + (samples.S - rm.M_r) / st.h_eff**2
+        return 2.0 / float(eigh(st.h_eff**2 * H, samples.S, eigvals_only=True)[-1])
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics
@@ -405,12 +419,15 @@ class ReducedSolver:
         if state_in.q is None:
             state_in = self.project(state_in)
         latent = ReducedState(state_in.q, state_in.qdot, state_in.t)
-        st = self._begin(latent, dt)
+        prev = previous_step(state_in, dt)
+        st = self._begin(latent, dt, None if prev is None or prev.q is None else
+                         ReducedState(prev.q, prev.qdot, prev.t))
         solve = self._newton if self.scheme == "newton" else self._projected_gradient
         res = solve(st)
         q = res.y
-        out = self.decode(ReducedState(q, (q - latent.q) / dt, latent.t + dt))
+        out = self.decode(ReducedState(q, (q - st.q_bar) / st.h_eff, latent.t + dt))
         state_out.x, state_out.v, state_out.t, state_out.q, state_out.qdot = out.x, out.v, out.t, out.q, out.qdot
+        state_out.previous = state_in.without_history()
         return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
                          stalls=res.stalls)
 
@@ -432,8 +449,8 @@ class _StepProblem:
         return Direction(dq, float(g @ dq))
 
     def step_norm(self, dq: np.ndarray) -> float:
-        """|W dq|_inf / h over all mesh vertices [m/s]."""
-        return self.solver._velocity_norm(dq, self.st.h)
+        """|W dq|_inf / h_eff over all mesh vertices [m/s]."""
+        return self.solver._velocity_norm(dq, self.st.h_eff)
 
     def max_step(self, q: np.ndarray, dq: np.ndarray) -> float:
         """The barrier law's feasible-step cap (1 for the penalty law)."""

@@ -5,7 +5,9 @@ Plane: phi(x) = n . x - d (n unit). Penalty law (the paper's, from warp's soft c
 c = max(0, -phi), normal pressure k_e c + k_d max(0, -v.n), energy density 1/2 k_e c^2; the damping part is
 the dissipative potential h k_d / 2 max(0, -v.n)^2 with v = (x - x^n)/h, active at the points that penetrate at
 the start of the step (`damped`, lagged like friction's normal force, so that the step's potential stays
-continuous; gating on the current penetration would make it jump where a point crosses the plane).
+continuous; gating on the current penetration would make it jump where a point crosses the plane). With BDF2 the
+velocity is the integrator's, v = (x - x_bar) / h_eff, and the potential h_eff k_d / 2 max(0, -v.n)^2
+(`solvers.integrators`); the gate stays the penetration at the start of the step, x^n.
 Barrier law (IPC): energy density kappa b(phi), b(d) = -(d - dhat)^2 log(d / dhat) for 0 < d < dhat, else 0.
 Arrays: x (p, 3) point positions, area (p,) [m^2]; energies in J, gradients (p, 3) in N, Hessians (p, 3, 3).
 The terms `PenaltyContact`, `ContactDamping` (the penalty law's damping part) and `BarrierContact` evaluate them
@@ -50,24 +52,31 @@ def damped_points(x_prev, normal, offset) -> np.ndarray:
     return signed_distance(x_prev, normal, offset) < 0
 
 
-def penalty_energy(x, x_prev, area, normal, offset, ke, kd, h) -> float:
-    """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [damped])."""
+def _approach(x, x_prev, x_bar, normal, offset, h) -> np.ndarray:
+    """min(0, v.n) with v = (x - x_bar) / h (x_bar None: x_prev) at the damped points, 0 elsewhere, (p,) [m/s]."""
+    x_bar = x_prev if x_bar is None else x_bar
+    return np.minimum(0.0, (x - x_bar) @ normal / h) * damped_points(x_prev, normal, offset)
+
+
+def penalty_energy(x, x_prev, area, normal, offset, ke, kd, h, x_bar=None) -> float:
+    """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [damped]), v = (x - x_bar) / h: h is the
+    integrator's effective step and x_bar its lagged positions (None: x_prev, backward Euler)."""
     c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * damped_points(x_prev, normal, offset)
+    vn = _approach(x, x_prev, x_bar, normal, offset, h)
     return float(area @ (0.5 * ke * c**2 + 0.5 * h * kd * vn**2))
 
 
-def penalty_gradient(x, x_prev, area, normal, offset, ke, kd, h) -> np.ndarray:
+def penalty_gradient(x, x_prev, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
     """Gradient of `penalty_energy`: A (-k_e c + k_d min(0, v.n) [damped]) n, (p, 3)."""
     c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = np.minimum(0.0, (x - x_prev) @ normal / h) * damped_points(x_prev, normal, offset)
+    vn = _approach(x, x_prev, x_bar, normal, offset, h)
     return (area * (-ke * c + kd * vn))[:, None] * normal[None, :]
 
 
-def penalty_hessian(x, x_prev, area, normal, offset, ke, kd, h) -> np.ndarray:
+def penalty_hessian(x, x_prev, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
     """Hessian blocks of `penalty_energy`: A (k_e [c > 0] + k_d / h [damped, v.n < 0]) n n^T, (p, 3, 3)."""
     c = -signed_distance(x, normal, offset)
-    vn = (x - x_prev) @ normal / h
+    vn = (x - (x_prev if x_bar is None else x_bar)) @ normal / h
     k = area * (ke * (c > 0) + kd / h * (damped_points(x_prev, normal, offset) & (vn < 0)))
     return k[:, None, None] * np.outer(normal, normal)[None]
 
@@ -132,9 +141,9 @@ class _Penalty(PointTerm):
     def _kd(self, model: Model) -> float:
         return 0.0
 
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
-                  h: float, order: int) -> Evaluation:
-        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self._ke(model), self._kd(model), h)
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+                  fn: np.ndarray | None, h: float, order: int) -> Evaluation:
+        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self._ke(model), self._kd(model), h, x_bar)
         return (penalty_energy(*args), penalty_gradient(*args) if order >= 1 else None,
                 penalty_hessian(*args) if order == 2 else None)
 
@@ -145,8 +154,8 @@ class _Penalty(PointTerm):
 
         m = solver.model
         wp.launch(K.penalty_contact_kernel, m.points.size, device=solver.device, inputs=[
-            x, solver.x_prev, solver.points, solver.area, solver.normal, m.plane_offset, self._ke(m), self._kd(m), h,
-            solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
+            x, solver.x_prev, solver.x_bar, solver.points, solver.area, solver.normal, m.plane_offset, self._ke(m),
+            self._kd(m), h, solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
 
 
 @register
@@ -171,8 +180,8 @@ class BarrierContact(PointTerm):
     def applies(self, model: Model) -> bool:
         return model.has("contact") and model.contact.law == "barrier"
 
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
-                  h: float, order: int) -> Evaluation:
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+                  fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         n, dhat = model.plane_normal, model.contact.barrier_distance
         phi = signed_distance(x, n, model.plane_offset)
         kA = model.contact.barrier_stiffness * area

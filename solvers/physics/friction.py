@@ -4,7 +4,8 @@ Per point with area A and lagged normal pressure f_n (from the start of the step
 D = A h mu f_n f0(|v_t|), v_t = T (x - x^n) / h, T = I - n n^T, with f0' = f1, f1(s) = min(s / eps_v, 1),
 eps_v = mu f_n / k_f. So the force is -A min(k_f |v_t|, mu f_n) v_t / |v_t|: viscous (k_f) below eps_v,
 Coulomb above. f0(s) = s^2 / (2 eps_v) for s < eps_v, s - eps_v / 2 beyond. A body that should stick creeps
-at the speed (tangential load per area) / k_f.
+at the speed (tangential load per area) / k_f. With BDF2, x^n and h are the integrator's x_bar and effective step h_eff
+(`solvers.integrators`): the functions below take them as x_prev and h.
 Arrays: x, x_prev (p, 3), area (p,) [m^2], fn (p,) [Pa]; energies J, gradients (p, 3) N, Hessians (p, 3, 3).
 `Friction` is the term at a model's contact points.
 """
@@ -104,9 +105,10 @@ class Friction(PointTerm):
     def applies(self, model: Model) -> bool:
         return model.has("friction")
 
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
-                  h: float, order: int) -> Evaluation:
-        args = (x, x_prev, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+                  fn: np.ndarray | None, h: float, order: int) -> Evaluation:
+        """The potential with the integrator's velocity (x - x_bar) / h, h its effective step."""
+        args = (x, x_bar, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)
         return (friction_energy(*args), friction_gradient(*args) if order >= 1 else None,
                 friction_hessian(*args) if order == 2 else None)
 
@@ -117,5 +119,5 @@ class Friction(PointTerm):
 
         m = solver.model
         wp.launch(K.friction_kernel, m.points.size, device=solver.device, inputs=[
-            x, solver.x_prev, solver.points, solver.area, solver.fn, solver.normal, m.friction,
+            x, solver.x_bar, solver.points, solver.area, solver.fn, solver.normal, m.friction,
             m.contact.friction_stiffness, h, solver.diag, solver.grad, solver.values, solver.energy_buf, mode])

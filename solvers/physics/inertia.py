@@ -1,5 +1,6 @@
-"""Inertia and gravity: lumped mass, the backward-Euler inertial term of the incremental potential and the
-potential of uniform gravity, with their `Term` objects."""
+"""Inertia and gravity: lumped mass, the inertial term of the incremental potential (backward Euler's, or BDF2's with
+its target x_tilde and effective step h_eff, `solvers.integrators`) and the potential of uniform gravity, with their
+`Term` objects."""
 
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def gravity_gradient(mass: np.ndarray, gravity: np.ndarray) -> np.ndarray:
 
 @register
 class Inertia(BodyTerm):
-    """1/(2 h^2) |x - x_hat|_M^2 (absent in static equilibrium, StepData.inertia = False)."""
+    """1/(2 h_eff^2) |x - x_hat|_M^2 (absent in static equilibrium, StepData.inertia = False)."""
 
     name = "inertia"
 
@@ -56,13 +57,13 @@ class Inertia(BodyTerm):
         return model.has("inertia")
 
     def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
-        return inertia_energy(x, step.x_hat, model.mass, step.h) if step.inertia else 0.0
+        return inertia_energy(x, step.x_hat, model.mass, step.h_eff) if step.inertia else 0.0
 
     def gradient(self, model: Model, step: StepData, x: np.ndarray) -> np.ndarray:
-        return inertia_gradient(x, step.x_hat, model.mass, step.h) if step.inertia else np.zeros_like(x)
+        return inertia_gradient(x, step.x_hat, model.mass, step.h_eff) if step.inertia else np.zeros_like(x)
 
     def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
-        return sp.diags(np.repeat(model.mass, 3) / step.h**2 * step.inertia).tocsr()
+        return sp.diags(np.repeat(model.mass, 3) / step.h_eff**2 * step.inertia).tocsr()
 
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         import warp as wp
@@ -74,15 +75,15 @@ class Inertia(BodyTerm):
             solver.grad, solver.values, solver.energy_buf, mode])
 
     def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """1/(2h^2) (q - q_hat)^T M_r (q - q_hat), M_r = W^T M W."""
-        M_r, d = rs.reduced.M_r, q - st.q_hat
-        E = 0.5 / st.h**2 * float(d @ M_r @ d)
-        return E, (M_r @ d / st.h**2 if order >= 1 else None), (M_r / st.h**2 if order == 2 else None)
+        """1/(2 h_eff^2) (q - q_hat)^T M_r (q - q_hat), M_r = W^T M W."""
+        M_r, d, h = rs.reduced.M_r, q - st.q_hat, st.h_eff
+        E = 0.5 / h**2 * float(d @ M_r @ d)
+        return E, (M_r @ d / h**2 if order >= 1 else None), (M_r / h**2 if order == 2 else None)
 
     def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
                         u_hat: np.ndarray) -> np.ndarray:
-        """w_i (u_i - u_hat_i) / h^2 with the sample vertices' cubature masses w_i."""
-        return rs.samples.weight[:, None] * ((u - u_hat) / st.h**2)
+        """w_i (u_i - u_hat_i) / h_eff^2 with the sample vertices' cubature masses w_i."""
+        return rs.samples.weight[:, None] * ((u - u_hat) / st.h_eff**2)
 
 
 @register

@@ -42,11 +42,12 @@ _TERMS: list["Term"] = []
 
 @dataclass(frozen=True)
 class StepData:
-    """One step's constants: x_hat = x^n + h v^n (n, 3) [m], x_prev = x^n (n, 3) [m], the time step h [s], the
-    lagged normal pressure fn (p,) [Pa] at the model's contact points (None without friction), `inertia`
-    (False: static equilibrium, no inertial term), and the integrator's data for the dissipative terms: their
-    velocity is v(x) = (x - x_bar) / h_eff with x_bar (n, 3) [m] and the effective step h_eff [s] (None: the
-    backward-Euler values x_bar = x_prev, h_eff = h)."""
+    """One step's constants (`solvers.integrators`): the inertial target x_hat = x_tilde = x_bar + h_eff v_bar (n, 3)
+    [m], the start-of-step positions x_prev = x^n (n, 3) [m], the time step h [s], the lagged normal pressure fn (p,)
+    [Pa] at the model's contact points (None without friction), `inertia` (False: static equilibrium, no inertial
+    term), and the integrator's x_bar (n, 3) [m] and effective step h_eff [s]: the inertial term is
+    1/(2 h_eff^2) |x - x_hat|_M^2 and every dissipative term uses the velocity v(x) = (x - x_bar) / h_eff. Backward
+    Euler (the defaults, None): x_bar = x_prev, h_eff = h."""
 
     x_hat: np.ndarray
     x_prev: np.ndarray
@@ -87,7 +88,8 @@ class Term(ABC):
     @abstractmethod
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         """Add the term at x with the full-space kernels: mode 0 its energy into solver.energy_buf, mode 1 its
-        gradient into solver.grad and Hessian blocks into solver.values."""
+        gradient into solver.grad and Hessian blocks into solver.values. h is the step's effective step h_eff [s]
+        (the solver's arrays x_hat, x_prev and x_bar hold the step's other constants)."""
 
 
 class BodyTerm(Term):
@@ -109,14 +111,15 @@ class PointTerm(Term):
     """A term per contact point (contact, damping, friction): evaluated at any sample points."""
 
     @abstractmethod
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, area: np.ndarray, fn: np.ndarray | None,
-                  h: float, order: int) -> Evaluation:
+    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+                  fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         """Energy [J], gradient (p, 3) [N] (order >= 1) and Hessian blocks (p, 3, 3) [N/m] (order 2) at points x
-        (p, 3) [m] with start-of-step positions x_prev, area weights area (p,) [m^2], lagged pressure fn (p,)."""
+        (p, 3) [m] with start-of-step positions x_prev and the integrator's x_bar (p, 3) [m] (velocity
+        (x - x_bar) / h), area weights area (p,) [m^2], lagged pressure fn (p,), h the effective step h_eff [s]."""
 
     def _at(self, model: Model, step: StepData, x: np.ndarray, order: int) -> Evaluation:
         p = model.points
-        return self.at_points(model, x[p], step.x_prev[p], model.area, step.fn, step.h, order)
+        return self.at_points(model, x[p], step.x_prev[p], step.x_bar[p], model.area, step.fn, step.h_eff, order)
 
     def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
         return self._at(model, step, x, 0)[0]

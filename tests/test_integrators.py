@@ -1,0 +1,128 @@
+"""Time integrators (solvers.integrators): backward Euler and BDF2 against the closed form of free fall in every
+solver, their observed orders of convergence on a smooth contact-free motion, and BDF2 through a retried step."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from itertools import pairwise
+
+import numpy as np
+import pytest
+
+from scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
+from solvers.baselines import affine_basis
+from solvers.full.solver import FullSpaceSolver, NewtonSettings
+from solvers.licrom.reduced import ReducedSolver
+from solvers.model import build_model, initial_state
+from solvers.simulate import simulate
+
+from scenes import G
+
+
+def free_fall_drop(integrator: str, n: np.ndarray) -> np.ndarray:
+    """The fall (in units of g h^2) after n steps of h from rest under a constant acceleration g, exactly as the
+    integrator computes it (its discrete solution, not the continuous g t^2 / 2).
+
+    Backward Euler: v^k = k h g, x^n = h sum_k v^k, so n (n + 1) / 2. BDF2 started by one backward-Euler step: the
+    velocity recurrence v^{k+1} - v^k = (v^k - v^{k-1}) / 3 + 2/3 h g starts at v^1 - v^0 = h g, its fixed point, so
+    v^k = k h g again; the increments e_k = x^k - x^{k-1} then follow e_{k+1} = e_k / 3 + 2/3 h v^{k+1} from
+    e_1 = h^2 g, whose solution is e_k = h^2 g (k - 1/2 + 3^{1-k} / 2), and summing, n^2 / 2 + 3/4 (1 - 3^-n).
+    """
+    if integrator == "bdf2":
+        return n**2 / 2 + 0.75 * (1.0 - 3.0 ** -n.astype(float))
+    return n * (n + 1) / 2
+
+
+@pytest.mark.parametrize("integrator", ["backward-euler", "bdf2"])
+@pytest.mark.parametrize("solver", ["full", "reduced-newton", "reduced-pg"])
+def test_free_fall_matches_the_integrators_closed_form(block, solver, integrator):
+    h, v0 = 0.01, np.array([0.3, 1.0, -0.2])
+    # without elasticity for the projected-gradient scheme: at alpha = 1 it is unstable for the stiff strain modes
+    # (a free fall excites none, but round-off would grow); alpha = 1 solves inertia and gravity in one iteration
+    sc = Scenario(name="free_fall", mesh=MeshSpec("block", "coarse"), plane=None,
+                  initial=Initial(clearance=None, velocity=tuple(v0)),
+                  time=TimeSpec(dt=h, duration=0.2, integrator=integrator),
+                  effects=Effects(elasticity=solver != "reduced-pg"))
+    model = build_model(sc, block)
+    if solver == "full":
+        stepper, state0 = FullSpaceSolver(model, settings=NewtonSettings(tol=1e-9)), None
+    else:
+        scheme = "newton" if solver == "reduced-newton" else "projected_gradient"
+        stepper = ReducedSolver(model, affine_basis(model.X), scheme=scheme, alpha=1.0, tol=1e-9, max_iter=5)
+        state0 = stepper.project(initial_state(model))
+    traj, stats = simulate(model, stepper, state0)
+    assert all(s.converged for s in stats)
+    n = np.arange(traj.n_frames)
+    drift = traj.x - traj.x[0] - (n * h)[:, None, None] * v0
+    expected = -G * h**2 * free_fall_drop(integrator, n)
+    assert np.abs(drift[:, :, 1] - expected[:, None]).max() < 1e-12
+    assert np.abs(drift[:, :, [0, 2]]).max() < 1e-12
+    assert np.abs(traj.v[-1] - (v0 - G * n[-1] * h * np.array([0.0, 1.0, 0.0]))).max() < 1e-10
+
+
+def spinning_block(integrator: str, dt: float, duration: float = 0.2) -> Scenario:
+    """A free elastic block (no gravity, no ground) spinning about a tilted axis: smooth, contact-free motion whose
+    time error (the rotation's) dominates its elastic vibrations (stiff material, slow spin)."""
+    return Scenario(name="spin", mesh=MeshSpec("block", "coarse"), plane=None, gravity=(0.0, 0.0, 0.0),
+                    material=Material(density=1000.0, youngs_modulus=1e7, poisson_ratio=0.3),
+                    initial=Initial(clearance=None, angular_velocity=(0.0, 5.0, 2.5)),
+                    time=TimeSpec(dt=dt, duration=duration, frame_every=int(round(duration / dt)),
+                                  integrator=integrator))
+
+
+def observed_orders(finals: list[np.ndarray]) -> np.ndarray:
+    """log2 of the ratios of successive differences between end states at dt, dt/2, dt/4, ... (RMS over vertices)."""
+    d = np.array([np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))) for a, b in pairwise(finals)])
+    return np.log2(d[:-1] / d[1:])
+
+
+@pytest.mark.parametrize("integrator", ["backward-euler", "bdf2"])
+def test_bdf2_converges_at_second_order_where_backward_euler_is_first_order(block, integrator):
+    finals = []
+    for dt in (0.02, 0.01, 0.005, 0.0025):
+        model = build_model(spinning_block(integrator, dt), block)
+        traj, stats = simulate(model, FullSpaceSolver(model, settings=NewtonSettings(tol=1e-9)))
+        assert all(s.converged for s in stats) and traj.t[-1] == pytest.approx(0.2)
+        finals.append(traj.x[-1])
+    orders = observed_orders(finals)
+    if integrator == "bdf2":
+        assert orders.min() >= 1.7
+    else:
+        assert 0.7 <= orders.min() and orders.max() <= 1.3
+
+
+@pytest.mark.parametrize("solver", ["full", "reduced"])
+def test_a_retried_bdf2_step_restarts_from_backward_euler_and_keeps_the_history_at_its_step(block, solver):
+    """Every full-size step fails once and is redone as two half steps: the run's first half step has no history
+    (a step that does not start one step dt after its predecessor is backward Euler), and from then on every half
+    step finds its predecessor one half step back and is BDF2. So the run is BDF2 at half the step, exactly."""
+    sc = spinning_block("bdf2", 0.01, duration=0.1)
+
+    def run(sc: Scenario, fail_full_steps: bool = False):
+        model = build_model(sc, block)
+        if solver == "full":
+            stepper, state0 = FullSpaceSolver(model, settings=NewtonSettings(tol=1e-10)), None
+        else:
+            stepper = ReducedSolver(model, affine_basis(model.X), tol=1e-10)
+            state0 = stepper.project(initial_state(model))
+        if fail_full_steps:
+            step = stepper.step
+            stepper.step = lambda s_in, s_out, dt: replace(step(s_in, s_out, dt), converged=dt < 0.0099)
+        return simulate(model, stepper, state0)
+
+    traj, stats = run(sc, fail_full_steps=True)
+    assert [s.retries for s in stats] == [1] * 10 and all(s.converged for s in stats)
+    half = run(replace(sc, time=replace(sc.time, dt=0.005, frame_every=20)))[0]
+    assert np.abs(traj.x[-1] - half.x[-1]).max() < 1e-12
+    half_be = run(replace(sc, time=replace(sc.time, dt=0.005, frame_every=20, integrator="backward-euler")))[0]
+    assert np.abs(traj.x[-1] - half_be.x[-1]).max() > 1e-5  # and that is not backward Euler's answer
+
+
+def test_the_bdf2_variant_set_runs_the_reference_solver_under_bdf2():
+    from bench.cli import parse_variants
+    from bench.runner import REFERENCE
+
+    (variant,) = parse_variants("bdf2")
+    sc = variant.scenario(Scenario(name="x", mesh=MeshSpec("block", "coarse")))
+    assert variant.solver == REFERENCE and sc.time.integrator == "bdf2" and sc.time.dt == TimeSpec().dt
+    assert variant in parse_variants("full-sweep")
