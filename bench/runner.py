@@ -33,9 +33,6 @@ from scenarios.suites import SuiteMember, TruthSpec, load_suite
 from solvers.registry import entries, register_entries
 from solvers.trajectory import Trajectory
 
-#: The time integrator of a scenario that names none (before `time.integrator` existed: backward Euler).
-DEFAULT_INTEGRATOR = "backward-euler"
-
 #: The solver whose runs are the references of the matrix (every other run is compared with its run of the same
 #: scenario); its default parameters are the reference's.
 REFERENCE = "full"
@@ -248,16 +245,11 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
     check_runs(runs, allow_large=allow_large)
 
 
-def integrator_of(sc: Scenario) -> str:
-    """The scenario's time integrator (`time.integrator`; backward Euler where the field does not exist)."""
-    return getattr(sc.time, "integrator", DEFAULT_INTEGRATOR)
-
-
 def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENCE) -> Variant:
     """Level k of a truth ladder: the full-space solver at dt / 2^k with `integrator`, a frame every
     frame_every x 2^k steps (the frames of every level fall on the same times)."""
     overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k else {}
-    if integrator != integrator_of(sc):
+    if integrator != sc.time.integrator:
         overrides["time.integrator"] = integrator
     return Variant(solver, {}, label=f"ladder-{integrator}-{k}", overrides=overrides, dt_scale=0.5 ** k)
 
@@ -390,7 +382,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
             return {"err_truth": pos_rmse_rel(truth_traj, transfer_to_mesh(traj, truth_traj) if other_mesh else traj)}
 
         rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,
-                            "integrator": integrator_of(sc)}
+                            "integrator": sc.time.integrator}
                     | _timing(ref_stats, ref_stats, sc.time.dt) | _metrics(ref, ref, sc, ref_stats)
                     | (err_truth(ref) if not ref_stats.get("failed") else {}))
         for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
@@ -422,7 +414,7 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                 v_ref, v_ref_stats = store.load(Task(sc, ref_task.solver, {}, mesh).key)
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
-                          "dt": task.scenario.time.dt, "integrator": integrator_of(task.scenario),
+                          "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
             metrics = _metrics(v_ref, traj, task.scenario, stats)
             truth_err = err_truth(traj, mesh is not None and not v.transfer) if metrics["status"] == "ok" else {}

@@ -63,14 +63,12 @@ from typing import Any, Literal
 
 from scenarios.errors import ScenarioError, checked_table
 from scenarios.load import NAME_PART, read_toml, scenario_from_dict
-from scenarios.model import Scenario
+from scenarios.model import INTEGRATORS, Scenario
 
 Split = Literal["train", "test"]
 SPLITS: tuple[Split, ...] = ("train", "test")
 SUITES_DIR = Path(__file__).parent / "suites"
 SUITE_KEYS = ("suite", "base", "axis", "split", "extra", "truth")
-#: Time integrators a truth ladder may use.
-TRUTH_INTEGRATORS = ("backward-euler", "bdf2")
 #: Bounds of a truth ladder's tolerance [fraction of L] and depth [halvings].
 TRUTH_TOL_RANGE = (1e-6, 0.5)
 TRUTH_DEPTH_RANGE = (1, 12)
@@ -205,12 +203,12 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     if isinstance(depth, bool) or not isinstance(depth, int) or not lo_d <= depth <= hi_d:
         raise ScenarioError(f"{where}{sep}depth", depth, f"expected an integer in [{lo_d}, {hi_d}] (halvings of dt)")
     integrator = t.get("integrator", d.integrator)
-    if integrator not in TRUTH_INTEGRATORS:
-        raise ScenarioError(f"{where}{sep}integrator", integrator, f"expected one of {list(TRUTH_INTEGRATORS)}")
+    if integrator not in INTEGRATORS:
+        raise ScenarioError(f"{where}{sep}integrator", integrator, f"expected one of {list(INTEGRATORS)}")
     ladders = _array(t.get("ladders", []), f"{where}{sep}ladders")
     for i, name in enumerate(ladders):
-        if name not in TRUTH_INTEGRATORS:
-            raise ScenarioError(f"{where}{sep}ladders[{i}]", name, f"expected one of {list(TRUTH_INTEGRATORS)}")
+        if name not in INTEGRATORS:
+            raise ScenarioError(f"{where}{sep}ladders[{i}]", name, f"expected one of {list(INTEGRATORS)}")
     return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)))
 

@@ -193,3 +193,24 @@ def test_paper_damped_is_the_papers_matrix_with_material_damping():
         assert b.scenario.material.damping_ratio == 0.05 and b.scenario.effects.viscosity
         assert b.scenario.plane == a.scenario.plane and b.scenario.mesh == a.scenario.mesh
     assert damped.truth == paper.truth
+
+
+def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):
+    suite = tmp_path / "ladder.toml"
+    suite.write_text(SUITE.replace('integrator = "backward-euler"', 'integrator = "bdf2"\nladders = ["backward-euler"]'))
+    rows = pd.read_csv(run_suite(str(suite), tmp_path / "out", variants=[], report=False))
+    ref = rows[rows["variant"] == "reference"].iloc[0]
+    assert ref["truth_integrator"] == "bdf2" and ref["integrator"] == "backward-euler" and ref["truth_depth"] == 2
+    bdf2, euler = rows[rows["ladder"] == "bdf2"], rows[rows["ladder"] == "backward-euler"]
+    assert len(bdf2) == len(euler) == 3 and (bdf2["integrator"] == "bdf2").all()
+    assert ref["run"] not in set(bdf2["run"]) and ref["run"] in set(euler["run"])  # BDF2 at dt is a run of its own
+    assert (euler["err_truth"] > 0).all() and bdf2["err_truth"].min() == 0.0  # the truth is the finest BDF2 run
+
+
+@pytest.mark.parametrize("name", ["quick", "paper"])
+def test_shipped_truths_pass_the_guard(name):
+    from bench.cli import parse_variants
+    from bench.runner import guard_resources, truth_config
+
+    suite = load_suite(name)
+    guard_resources(suite, parse_variants(None, suite=name), truth=truth_config(suite))

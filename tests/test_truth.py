@@ -99,3 +99,10 @@ def test_with_frontier_gives_every_row_of_a_scenario_its_speedup_against_its_own
     assert out[5]["speedup_equal_accuracy"] is None and out[5]["frontier_note"] == "more accurate than the ladder"
     assert out[7]["speedup_equal_accuracy"] is None and out[7]["frontier_note"] == "the truth"
     assert "speedup_equal_accuracy" not in out[6] and "speedup_equal_accuracy" not in out[8]  # failed; no ladder
+
+
+def test_every_integrator_of_the_scenarios_has_a_formal_order():
+    from analysis.truth import FORMAL_ORDER
+    from scenarios.model import INTEGRATORS
+
+    assert set(FORMAL_ORDER) == set(INTEGRATORS)
