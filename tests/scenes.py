@@ -20,6 +20,25 @@ def incline(theta_deg: float, mu: float, **kw) -> Scenario:
         time=TimeSpec(dt=0.01, duration=kw.pop("duration", 0.6)), **kw)
 
 
+def assert_ranges_match_one_launch(solver, kernel, inputs: list, offsets: dict[int, int]) -> None:
+    """A per-element Hessian kernel launched over element ranges from 1 and 2 threads (`ElementRanges`) fills
+    solver.elem_blocks bitwise as one launch does, at its first launch (ranges in turn) and later ones (threads);
+    `inputs` end before the output blocks, `offsets` as `ElementRanges.launch` takes them."""
+    from solvers.full.assembly import ElementRanges
+
+    ref = None
+    for threads in (1, 2):
+        ranges = ElementRanges(solver.model.tets.shape[0], solver.device, threads)
+        assert ranges.threads == threads
+        for _ in range(2):  # a kernel's first launch runs the ranges in turn, later ones in parallel threads
+            solver.elem_blocks.zero_()
+            ranges.launch(kernel, inputs + [solver.elem_blocks], offsets)
+            if ref is None:
+                ref = solver.elem_blocks.numpy().copy()
+                assert np.abs(ref).max() > 0
+            assert np.array_equal(solver.elem_blocks.numpy(), ref)
+
+
 def com_series(traj, mass):
     """Centre of mass per frame, (F, 3) [m]."""
     return np.einsum("n,fnk->fk", mass, traj.x) / mass.sum()

@@ -20,11 +20,12 @@ from scenarios.meshes import load_mesh
 from scenarios.model import TimeSpec
 from solvers import linalg
 from solvers.full import kernels as K
-from solvers.full.assembly import ElementRanges
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.model import State, build_model
 from solvers.run import run_scenario
 from solvers.simulate import simulate
+
+from scenes import assert_ranges_match_one_launch
 
 # PARDISO is a dependency on x86-64 (pyproject.toml): there a missing one fails these tests instead of skipping them
 needs_pardiso = pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"),
@@ -149,17 +150,7 @@ def test_element_ranges_give_bitwise_the_single_launch(contact_hessians):
     rng = np.random.default_rng(2)
     solver.x.assign(m.X + 0.01 * m.L * rng.standard_normal(m.X.shape))
     ins = [solver.x, solver.tets, solver.Dm_inv, solver.vol, m.mu_snh, m.lam_snh, solver.alpha_snh]
-    ref = None
-    for threads in (1, 2):
-        ranges = ElementRanges(m.tets.shape[0], solver.device, threads)
-        assert ranges.threads == threads
-        for _ in range(2):  # a kernel's first launch runs the ranges in turn, later ones in parallel threads
-            solver.elem_blocks.zero_()
-            ranges.launch(K.elastic_hessian_kernel, ins + [solver.elem_blocks], {1: 1, 2: 1, 3: 1, 7: 16})
-            if ref is None:
-                ref = solver.elem_blocks.numpy().copy()
-                assert np.abs(ref).max() > 0
-            assert np.array_equal(solver.elem_blocks.numpy(), ref)
+    assert_ranges_match_one_launch(solver, K.elastic_hessian_kernel, ins, {1: 1, 2: 1, 3: 1, 7: 16})
 
 
 @needs_pardiso

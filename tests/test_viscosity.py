@@ -17,7 +17,6 @@ from scenarios.meshgen import structured_box
 from scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
 from solvers.baselines import full_basis
 from solvers.full import kernels as K
-from solvers.full.assembly import ElementRanges
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
 from solvers.licrom.reduced import ReducedSolver, ReducedState
 from solvers.model import Model, build_model, initial_state, rotation_matrix
@@ -27,7 +26,7 @@ from solvers.physics import viscosity as pv
 from solvers.run import run_scenario
 from solvers.simulate import simulate
 
-from scenes import G, com_series, incline
+from scenes import G, assert_ranges_match_one_launch, com_series, incline
 
 VISCOUS = pv.Viscosity()
 
@@ -129,17 +128,7 @@ def test_the_threaded_hessian_launch_is_bitwise_the_single_launch():
     solver.x_bar.assign(_perturbed(model, 11, 0.002))
     solver.x.assign(_perturbed(model, 12, 0.002))
     ins = [solver.x, solver.x_bar, solver.tets, solver.Dm_inv, solver.vol, model.viscosity / 0.01]
-    ref = None
-    for threads in (1, 2):
-        ranges = ElementRanges(model.tets.shape[0], solver.device, threads)
-        assert ranges.threads == threads
-        for _ in range(2):  # a kernel's first launch runs the ranges in turn, later ones in parallel threads
-            solver.elem_blocks.zero_()
-            ranges.launch(K.viscous_hessian_kernel, ins + [solver.elem_blocks], {2: 1, 3: 1, 4: 1, 6: 16})
-            if ref is None:
-                ref = solver.elem_blocks.numpy().copy()
-                assert np.abs(ref).max() > 0
-            assert np.array_equal(solver.elem_blocks.numpy(), ref)
+    assert_ranges_match_one_launch(solver, K.viscous_hessian_kernel, ins, {2: 1, 3: 1, 4: 1, 6: 16})
 
 
 def test_reduced_evaluation_matches_the_full_space_reference(box):
