@@ -91,10 +91,11 @@ def test_changes_within_the_tolerances_pass_and_tolerances_are_configurable(tmp_
 
 
 def test_a_newly_failing_gate_is_a_regression_within_the_tolerance(tmp_path: Path):
-    a = _write(tmp_path / "a", _changed(speedup=11.0))
-    b = _write(tmp_path / "b", _changed(speedup=9.5))  # x1.16 slower, within x1.5, but under the gate's min 10
+    limit = next(g["min"] for g in GATES if g["suite"] == "quick" and g["metric"] == "speedup")
+    a = _write(tmp_path / "a", _changed(speedup=1.1 * limit))
+    b = _write(tmp_path / "b", _changed(speedup=0.95 * limit))  # x1.16 slower, within x1.5, but under the gate's min
     code, out, _ = _cli("compare", a, b)
-    assert code == 1 and "gate min 10.0 now fails" in out
+    assert code == 1 and f"gate min {float(limit)} now fails" in out
 
 
 @pytest.mark.parametrize(("change", "reason"), [
