@@ -195,7 +195,7 @@ clearance = 0.01
 
 [base.time]
 dt = 0.01
-duration = 2.0
+duration = 6.0
 
 [[axis]]
 name = "mu"
@@ -226,7 +226,7 @@ def test_a_worker_killed_mid_task_costs_only_that_task(tmp_path, cluster):
             w0 = next((addr for addr, w in info.items() if w["name"] == "w0"), None)
             busy = monitor.processing().get(w0) if w0 else None
             if busy:
-                time.sleep(1.0)  # well inside its run (a few seconds each)
+                time.sleep(0.5)  # well inside its run (600 steps, a few seconds each)
                 if monitor.processing().get(w0) == busy:
                     killed["keys"] = busy
                     c.kill("w0")

@@ -112,11 +112,15 @@ def test_frontier_hover_names_the_variant_and_the_viewer_plays(tmp_path: Path, b
     viewer.scroll_into_view_if_needed()
     active = "document.getElementById('viewer-0')._fullLayout.sliders[0].active"
     assert page.evaluate(active) == 0
-    x0 = page.evaluate("Array.from(document.getElementById('viewer-0')._fullData[1].x)")
+    shown = "Array.from(document.getElementById('viewer-0')._fullData[1].x)"
+    x0 = page.evaluate(f"window.__x0 = {shown}")
     viewer.locator(".updatemenu-button", has_text="Play").click()
-    page.wait_for_function(f"{active} >= 3", timeout=10_000)
+    # the slider moves on, and the shown surface follows it (it may lag the slider by a transition): the reference
+    # slides along +x by more than 0.02 m
+    moved = f"Math.max(...{shown}.map((v, i) => v - window.__x0[i]))"
+    page.wait_for_function(f"{active} >= 3 && {moved} > 0.02", timeout=20_000)
     viewer.locator(".updatemenu-button", has_text="Pause").click()
-    x1 = page.evaluate("Array.from(document.getElementById('viewer-0')._fullData[1].x)")
+    x1 = page.evaluate(shown)
     assert np.max(np.array(x1) - np.array(x0)) > 0.02  # the reference slid along +x between the frames
     # The headline table sorts by a column when its heading is clicked, the other way round on a second click.
     heading = page.locator("#summary table th", has_text="median pos_rmse_rel")
