@@ -187,7 +187,7 @@ def _keyed(frame: pd.DataFrame, name: str) -> dict[tuple, dict]:
 
 def _flag(value: object) -> bool | None:
     """A flag cell as a bool (`ok`, `true`, `yes` are true; `failed`, `false`, `no` false); None when missing."""
-    if _missing(value):
+    if is_missing(value):
         return None
     if isinstance(value, str):
         text = value.strip().lower()
@@ -199,13 +199,14 @@ def _flag(value: object) -> bool | None:
     return bool(value)
 
 
-def _missing(value: object) -> bool:
+def is_missing(value: object) -> bool:
+    """Whether a results cell holds no value (None, NaN, pd.NA, an empty CSV cell read back)."""
     return value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value)))
 
 
 def _number(value: object) -> float | None:
     """A numeric cell as a float; None when missing or not a number."""
-    if _missing(value):
+    if is_missing(value):
         return None
     try:
         return float(value)
@@ -274,13 +275,13 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
             continue
         rb, rn = b[key], n[key]
         if _flag(rb.get("status")) is not False and _flag(rn.get("status")) is False:
-            failure = "" if _missing(rn.get("failure")) else rn["failure"]
+            failure = "" if is_missing(rn.get("failure")) else rn["failure"]
             rows.append(_row("regression", scenario, label, "status", "stability", rb.get("status"),
                              rn.get("status"), reason=f"run failed: {failure}"))
             continue
         for metric, rule in by_metric.items():
             vb, vn = rb.get(metric), rn.get(metric)
-            if _missing(vb) and _missing(vn):
+            if is_missing(vb) and is_missing(vn):
                 continue
             verdict, reason = _judge(rule, vb, vn)
             gate_b, gate_n = gated_b.get((scenario, label, metric), []), gated_n.get((scenario, label, metric), [])
@@ -352,7 +353,7 @@ def format_table(comparison: pd.DataFrame, everything: bool = False) -> str:
 
 def _cell(value: object) -> str:
     """A value cell: numbers to 4 significant digits, missing as `-`."""
-    if _missing(value):
+    if is_missing(value):
         return "-"
     number = _number(value)
     return f"{number:.4g}" if number is not None and not isinstance(value, (bool, np.bool_, str)) else str(value)

@@ -30,6 +30,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.table import IDENTITY_COLUMNS, PROVENANCE_COLUMNS, TIMING_COLUMNS
+from bench.compare import is_missing
 from bench.gates import check, load_gates
 from bench.store import load_run_info
 from scenarios.suites import load_suite
@@ -58,15 +59,11 @@ class Difference:
         return f"{self.where}: {self.what}: {self.old!r} -> {self.new!r}"
 
 
-def _missing(value: object) -> bool:
-    return value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA
-
-
 def values_equal(old: object, new: object, rtol: float, atol: float = ATOL) -> bool:
     """Equal within rtol (relative to the larger magnitude) or atol for numbers; exact for anything else; two
     missing values (None, NaN, empty cell) are equal, and so are two infinities of one sign."""
-    if _missing(old) or _missing(new):
-        return _missing(old) and _missing(new)
+    if is_missing(old) or is_missing(new):
+        return is_missing(old) and is_missing(new)
     if isinstance(old, bool) or isinstance(new, bool) or isinstance(old, str) or isinstance(new, str):
         return str(old).lower() == str(new).lower()
     return math.isclose(float(old), float(new), rel_tol=rtol, abs_tol=atol)
@@ -80,7 +77,7 @@ def _keyed(frame: pd.DataFrame, keys: list[str]) -> dict[tuple, dict]:
     """Rows by their identity; raises ValueError on a repeated identity (the rows could not be matched)."""
     rows: dict[tuple, dict] = {}
     for row in frame.to_dict("records"):
-        key = tuple("" if _missing(row[k]) else str(row[k]) for k in keys)
+        key = tuple("" if is_missing(row[k]) else str(row[k]) for k in keys)
         if key in rows:
             raise ValueError(f"two rows share the identity {dict(zip(keys, key))}")
         rows[key] = row

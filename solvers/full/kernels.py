@@ -348,6 +348,13 @@ def green_strain(F: wp.mat33d) -> wp.mat33d:
     return f64(0.5) * (wp.transpose(F) * F - wp.identity(n=3, dtype=f64))
 
 
+@wp.func
+def strain_change(F: wp.mat33d, x_bar: wp.array(dtype=wp.vec3d), tet: wp.vec4i, Dmi: wp.mat33d) -> wp.mat33d:
+    """A = E(F) - E(F_bar): the Green strain at F minus that at the integrator's x_bar (the viscous term's rate
+    times h_eff)."""
+    return green_strain(F) - green_strain(deformation_gradient(x_bar, tet, Dmi))
+
+
 @wp.kernel
 def viscous_energy_kernel(
     x: wp.array(dtype=wp.vec3d),
@@ -360,8 +367,7 @@ def viscous_energy_kernel(
 ):
     """energy[0] += V_e eta / h_eff |E(F) - E(F_bar)|_F^2 (see solvers.physics.viscosity)."""
     e = wp.tid()
-    A = green_strain(deformation_gradient(x, tets[e], Dm_inv[e])) - green_strain(
-        deformation_gradient(x_bar, tets[e], Dm_inv[e]))
+    A = strain_change(deformation_gradient(x, tets[e], Dm_inv[e]), x_bar, tets[e], Dm_inv[e])
     wp.atomic_add(energy, 0, vol[e] * eta_over_h * wp.ddot(A, A))
 
 
@@ -380,7 +386,7 @@ def viscous_gradient_kernel(
     tet = tets[e]
     Dmi = Dm_inv[e]
     F = deformation_gradient(x, tet, Dmi)
-    FA = F * (green_strain(F) - green_strain(deformation_gradient(x_bar, tet, Dmi)))
+    FA = F * strain_change(F, x_bar, tet, Dmi)
     c = vol[e] * eta_over_h
     for a in range(4):
         wp.atomic_add(grad, tet[a], f64(2.0) * c * (FA * shape_gradient(Dmi, a)))
@@ -403,7 +409,7 @@ def viscous_hessian_kernel(
     tet = tets[e]
     Dmi = Dm_inv[e]
     F = deformation_gradient(x, tet, Dmi)
-    A = green_strain(F) - green_strain(deformation_gradient(x_bar, tet, Dmi))
+    A = strain_change(F, x_bar, tet, Dmi)
     c = vol[e] * eta_over_h
     Q = wp.mat33d()
     lam = wp.vec3d()
