@@ -32,6 +32,8 @@ TWO_LEVEL_ORDER = 1.0
 UNDECIDABLE_FACTOR = 3.0
 #: The frontier note of a run more accurate than every ladder run but the truth (no speedup number).
 MORE_ACCURATE = "more accurate than the ladder"
+#: The frontier note of a run less accurate than the ladder's coarsest run: its speedup is an upper bound.
+AT_MOST = "at most: less accurate than the coarsest ladder run"
 
 
 @dataclass(frozen=True)
@@ -128,27 +130,28 @@ def full_space_cost(front: Sequence[tuple[float, float]], err: float) -> tuple[f
     """(cost, note): the full-space cost at accuracy `err` on a Pareto front of (err, cost) ladder points
     (`pareto_front`), interpolated linearly in (log err, log cost).
 
-    Beyond the coarsest point (a less accurate run) the first segment is extrapolated and the note says so; a
-    run more accurate than the most accurate point gets no cost and the note `more accurate than the ladder`;
-    no cost either with an empty front or a single point that `err` does not equal.
+    A run less accurate than the coarsest point gets that point's cost with the note `AT_MOST`: the full-space
+    solver reaches its accuracy for that cost or less, so a speedup from it is an upper bound (extrapolating the
+    first segment instead would invent the cost of runs nobody made). A run more accurate than the most accurate
+    point gets no cost and the note `MORE_ACCURATE`; no cost either with an empty front.
     """
     if not front:
         return None, "no ladder"
     if err < front[-1][0]:
         return None, MORE_ACCURATE
-    if len(front) == 1:
-        return (front[0][1], "") if err == front[0][0] else (None, "one ladder point")
     if err > front[0][0]:
-        (e0, c0), (e1, c1), note = front[0], front[1], "extrapolated beyond the coarsest ladder run"
-    else:
-        i = next(i for i in range(len(front) - 1) if front[i + 1][0] <= err)
-        (e0, c0), (e1, c1), note = front[i], front[i + 1], ""
+        return front[0][1], AT_MOST
+    if len(front) == 1:
+        return front[0][1], ""
+    i = next(i for i in range(len(front) - 1) if front[i + 1][0] <= err)
+    (e0, c0), (e1, c1) = front[i], front[i + 1]
     slope = math.log(c1 / c0) / math.log(e1 / e0)
-    return c0 * math.exp(slope * math.log(err / e0)), note
+    return c0 * math.exp(slope * math.log(err / e0)), ""
 
 
 def speedup_equal_accuracy(front: Sequence[tuple[float, float]], err: float, cost: float) -> tuple[float | None, str]:
-    """(speedup, note): `full_space_cost(front, err)` / `cost` (None with the note where there is no cost)."""
+    """(speedup, note): `full_space_cost(front, err)` / `cost` [-] (None with the note where there is no cost; an
+    upper bound where the note is `AT_MOST`)."""
     full, note = full_space_cost(front, err)
     return (None if full is None or cost <= 0.0 else full / cost), note
 

@@ -18,7 +18,9 @@ Each gate yields one verdict per matching row; a gate that matches no row fails 
 A verdict is `passed`, `failed` or `undecidable`: a `max` gate on an error against the truth (`err_truth`, or a
 gate marked `against_truth`) whose limit is below 3x the error estimate of the row's truth, where that truth is
 uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
-`frictionbench gate`; so is a gate on `speedup_equal_accuracy` of a row more accurate than its whole ladder.
+`frictionbench gate`; so is a gate on `speedup_equal_accuracy` of a row more accurate than its whole ladder, and a
+`min` gate on it whose row is less accurate than the ladder's coarsest run (its number is an upper bound: below the
+limit it fails, at or above it nothing is proven).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis.table import variant_labels
-from analysis.truth import MORE_ACCURATE, decidable
+from analysis.truth import AT_MOST, MORE_ACCURATE, decidable
 
 #: Metrics that are errors against the ground truth: their `max` gates can be undecidable.
 TRUTH_METRICS: tuple[str, ...] = ("err_truth",)
@@ -91,9 +93,12 @@ def _flag(value: object) -> bool:
 def _undecidable(row: pd.Series, gate: dict) -> bool:
     """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
     estimate is too large for the limit (`analysis.truth.decidable`), or a gate on the speedup at equal accuracy
-    of a row more accurate than its whole ladder (it has no number, only its `frontier_note`)."""
-    if gate["metric"] == "speedup_equal_accuracy" and pd.isna(row.get("speedup_equal_accuracy")):
-        return row.get("frontier_note") == MORE_ACCURATE
+    of a row more accurate than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on
+    it met only by an upper bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
+    if gate["metric"] == "speedup_equal_accuracy":
+        if pd.isna(row.get("speedup_equal_accuracy")):
+            return row.get("frontier_note") == MORE_ACCURATE
+        return row.get("frontier_note") == AT_MOST and "min" in gate and _passes(row["speedup_equal_accuracy"], gate)
     if "max" not in gate or not (gate["metric"] in TRUTH_METRICS or gate.get("against_truth")):
         return False
     if "truth_err_est" not in row and "truth_certified" not in row:

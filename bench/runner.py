@@ -19,7 +19,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from analysis.derived import with_remesh_ratio
-from analysis.metrics import compare, pos_rmse_rel
+from analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
 from analysis.table import write_results_csv
 from analysis.transfer import transfer_to_mesh
 from analysis.truth import TruthEstimate, assess_ladder, ladder_continues, wall_s_per_sim_s, with_frontier
@@ -362,7 +362,10 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                  ladders: dict[str, dict[str, Ladder]] | None = None, truth: TruthSpec | None = None) -> list[dict]:
     """One results row per (member, variant) plus one per reference and one per ladder run: identity, metrics,
     timings; with ladders, every row also gets err_truth (against its scenario's truth; remeshed runs carried onto
-    the truth's mesh first), the truth's columns (`truth_columns`) and the frontier's (`with_frontier`)."""
+    the truth's mesh first), the truth's columns (`truth_columns`) and the frontier's (`with_frontier`), and every
+    variant row its error's parts: err_time (the full-space run it is compared with, against the truth: the time
+    step's share), pos_rmse_rel (against that run: the reduction's share) and, with a subspace, err_projection
+    (the truth projected onto it: the basis's share)."""
     rows = []
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
@@ -376,10 +379,21 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
             base |= columns
             truth_traj = store.load(truth_task.key)[0] if truth_task else None
 
-        def err_truth(traj, other_mesh: bool = False) -> dict:
+        def err_truth(traj, other_mesh: bool = False, truth_traj=truth_traj) -> dict:
             if truth_traj is None or traj is None:
                 return {}
             return {"err_truth": pos_rmse_rel(truth_traj, transfer_to_mesh(traj, truth_traj) if other_mesh else traj)}
+
+        def error_parts(traj, run_ref, other_mesh: bool, truth_traj=truth_traj) -> dict:
+            """err_time: the full-space run this row is compared with, against the truth; err_projection: the
+            truth (carried onto the row's mesh) projected onto the row's subspace, where it has one."""
+            if truth_traj is None or run_ref is None:
+                return {}
+            parts = {"err_time": err_truth(run_ref, other_mesh)["err_truth"]}
+            if traj is not None and traj.basis is not None:
+                truth_here = transfer_to_mesh(truth_traj, traj) if other_mesh else truth_traj
+                parts["err_projection"] = proj_rmse_rel(truth_here, traj.basis)
+            return parts
 
         rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,
                             "integrator": sc.time.integrator}
@@ -417,7 +431,9 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                           "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
             metrics = _metrics(v_ref, traj, task.scenario, stats)
-            truth_err = err_truth(traj, mesh is not None and not v.transfer) if metrics["status"] == "ok" else {}
+            other_mesh = mesh is not None and not v.transfer
+            truth_err = (err_truth(traj, other_mesh) | error_parts(traj, v_ref, other_mesh)
+                         if metrics["status"] == "ok" else {})
             rows.append(row | _timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
     return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
 

@@ -2,9 +2,9 @@
 sortable, filterable tables; it opens offline (no request: plotly.js and the data are inline).
 
 Sections (with these ids and headings): summary (the headline: per solver family its best variant, the gates as a
-count with the failures), accuracy-vs-time (the frontier), ladders, error-over-time, viewer, time-convergence,
-stick-slip, remeshing, stability, gate-verdicts, results, any extra sections, provenance. Every text from the
-results is escaped: HTML-escaped in the page, JSON-escaped for `<script>` in the embedded figures.
+count with the failures), accuracy-vs-time (the frontier), ladders, error-parts, error-over-time, viewer,
+time-convergence, stick-slip, remeshing, stability, gate-verdicts, results, any extra sections, provenance. Every
+text from the results is escaped: HTML-escaped in the page, JSON-escaped for `<script>` in the embedded figures.
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from analysis.derived import remeshing_summary
 from analysis.table import PROVENANCE_COLUMNS, results_frame, variant_labels
 from reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
 from reports.interactive import page_scripts, plot_div, plotly_version
-from reports.plots import error_over_time_figure, frontier_figure, ladder_figure
+from reports.plots import (error_over_time_figure, error_parts_figure, frontier_figure, ladder_figure,
+                           ladder_mask)
 from reports.viewer import DEFAULT_BUDGET, ViewerBudget, viewer_figure
 from scenarios.atomic import write_text_atomic
 from scenarios.model import Plane
@@ -180,7 +181,8 @@ def _verdicts(gates: Sequence[object]) -> str:
 def _results(frame: pd.DataFrame) -> str:
     """The key columns of every results row."""
     summary = _columns(frame, ["suite", "scenario", "split", "mesh", "solver", "variant", "ladder", "integrator",
-                               "dt", "status", "failure", "err_truth", "pos_rmse_rel", "proj_rmse_rel",
+                               "dt", "status", "failure", "err_truth", "err_time", "err_projection",
+                               "pos_rmse_rel", "proj_rmse_rel",
                                "com_err_rel", "final_err_rel", "slide_err_rel", "stick_agree", "wall_s_per_sim_s",
                                "step_ms_median", "speedup", "speedup_equal_accuracy", "frontier_note",
                                "truth_certified", "truth_err_est"])
@@ -204,6 +206,20 @@ def _ladders(frame: pd.DataFrame) -> str:
     return (_note("Each ladder: the reference solver at halved time steps; err_truth of each level against the "
                   "scenario's truth, with the truth's own error estimate.")
             + plot_div(figure, "ladders-plot", 420))
+
+
+def _error_parts(frame: pd.DataFrame) -> str:
+    """Where each variant's error against the truth comes from: subspace, reduction, time step."""
+    figure = error_parts_figure(frame)
+    if figure is None:
+        return _note("No ground truth in this result set: the error cannot be split into its parts.")
+    parts = _columns(frame[~ladder_mask(frame) & (frame["variant"].astype(str) != "reference")],
+                     ["scenario", "solver", "variant", "err_truth", "err_projection", "pos_rmse_rel", "err_time"])
+    return (_note("A variant's error against the truth has three sources: its subspace (err_projection: the best "
+                  "any run in it could do against the truth), the reduction (pos_rmse_rel: against the full-space "
+                  "run at its own time step) and the time step (err_time: that full-space run against the truth). "
+                  "Where err_time dominates, a better reduced model would not help: a smaller step would.")
+            + plot_div(figure, "error-parts-plot", 380) + _table(parts.dropna(subset=["err_time"])))
 
 
 def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:
@@ -419,6 +435,7 @@ def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], ou
         ("summary", "Summary", _summary(frame, gates)),
         ("accuracy-vs-time", "Accuracy versus time", _frontier(frame)),
         ("ladders", "Ground-truth ladders", _ladders(frame)),
+        ("error-parts", "Where the error comes from", _error_parts(frame)),
         ("error-over-time", "Error over time", _error_over_time(runs) if runs else no_runs),
         ("viewer", "3D viewer", _viewers(runs, frame, viewer) if runs else no_runs),
         ("time-convergence", "Reference time-step convergence", _time_convergence(frame)),

@@ -190,3 +190,39 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
                               "width": 1}, "hoverinfo": "name"})
     return {"data": data, "layout": _layout("Ground-truth ladders: error against the truth per time step",
                                             "dt [s]", "err_truth")}
+
+
+#: The parts of a variant's error against the truth (`analysis.table.TRUTH_COLUMNS`), in the order drawn.
+ERROR_PARTS: tuple[tuple[str, str], ...] = (
+    ("err_projection", "projection: the truth projected onto the subspace"),
+    ("pos_rmse_rel", "reduction: against the full-space run at its dt"),
+    ("err_time", "time step: that full-space run against the truth"),
+    ("err_truth", "total: against the truth"),
+)
+
+
+def error_parts_figure(frame: pd.DataFrame) -> dict[str, object] | None:
+    """Where each variant's error comes from: grouped bars (log y) of the medians over scenarios of its error parts
+    (`ERROR_PARTS`), one group per variant that has err_time (not the references, not the ladders). None when no
+    row has them."""
+    if "err_time" not in frame:
+        return None
+    rows = ~ladder_mask(frame) & numeric_column(frame, "err_time").notna()
+    if "variant" in frame:
+        rows &= frame["variant"].astype(str) != "reference"
+    if not rows.any():
+        return None
+    f = pd.DataFrame({"label": variant_labels(frame)[rows]}
+                     | {column: numeric_column(frame, column)[rows] for column, _ in ERROR_PARTS})
+    medians = f.groupby("label", sort=True).median()
+    data = []
+    for n, (column, name) in enumerate(ERROR_PARTS):
+        y = medians[column].where(medians[column] > 0)
+        data.append({"type": "bar", "name": text(name), "x": [text(label) for label in medians.index],
+                     "y": [None if pd.isna(v) else float(v) for v in y],
+                     "marker": {"color": PALETTE[n % len(PALETTE)]},
+                     "hovertemplate": f"%{{x}}<br>{text(column)} = %{{y:.3g}}<extra></extra>"})
+    layout = _layout("Error parts per variant (medians over scenarios)", "variant", "fraction of L")
+    layout["xaxis"] = {"title": {"text": "variant"}, "automargin": True}
+    layout["barmode"] = "group"
+    return {"data": data, "layout": layout}

@@ -11,12 +11,13 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.metrics import pos_rmse_rel
+from analysis.metrics import pos_rmse_rel, proj_rmse_rel
 from analysis.truth import richardson
 from bench.cli import main
 from bench.compare import compare_results
 from bench.gates import check
-from bench.runner import run_suite
+from bench.runner import Variant, run_suite
+from bench.variants import DT_HALF
 from bench.store import RunStore
 from scenarios.errors import ScenarioError
 from scenarios.suites import load_suite, suite_from_dict
@@ -138,12 +139,50 @@ def test_an_uncertified_truth_makes_a_tight_accuracy_verdict_undecidable():
     assert [v.status for v in check(_truth_rows(True, 0.0001), failing, "quick")] == ["failed"] * 3
 
 
+def test_every_variant_row_splits_its_error_into_projection_reduction_and_time(tmp_path: Path):
+    suite = tmp_path / "ladder.toml"
+    suite.write_text(SUITE)
+    out = tmp_path / "out"
+    variants = [Variant("affine", {}, label="affine12"), Variant("pod", {"r": 4}, label="r4"), DT_HALF]
+    rows = pd.read_csv(run_suite(str(suite), out, variants=variants, report=False))
+    store = RunStore(out / "runs")
+    ref = rows[rows["variant"] == "reference"].iloc[0]
+    truth = store.load(rows[rows["frontier_note"] == "the truth"].iloc[0]["run"])[0]
+    runs = rows[rows["variant"].isin(["affine12", "r4", "dt-half"])].set_index("variant")
+    assert runs["status"].eq("ok").all() and len(runs) == 3
+    # the time step's share: the full-space run each is compared with (the reference) against the truth
+    assert runs["err_time"].tolist() == pytest.approx([ref["err_truth"]] * 3)
+    for label in ("affine12", "r4"):
+        row = runs.loc[label]
+        basis = store.load(row["run"])[0].basis
+        assert row["err_projection"] == pytest.approx(proj_rmse_rel(truth, basis))
+        assert row["err_projection"] <= row["err_truth"] + 1e-12  # no run in the subspace beats the projection
+        assert row["err_truth"] <= row["pos_rmse_rel"] + row["err_time"] + 1e-12  # the RMS triangle inequality
+    assert pd.isna(runs.loc["dt-half", "err_projection"])  # a full-space run has no subspace
+    assert pd.isna(ref.get("err_time")) and "Where the error comes from" in _report(out)
+
+
+def _report(out: Path) -> str:
+    from bench.reporting import build_report
+
+    return build_report(out).read_text(encoding="utf-8")
+
+
 def test_a_speedup_gate_on_a_run_more_accurate_than_the_ladder_is_undecidable():
     rows = pd.DataFrame([{"suite": "quick", "scenario": "quick/a", "solver": "licrom", "variant": "m",
                           "status": "ok", "speedup_equal_accuracy": None, "frontier_note": note}
                          for note in ("more accurate than the ladder", "no ladder")])
     gate = {"suite": "quick", "variant": "licrom/m", "metric": "speedup_equal_accuracy", "min": 10.0}
     assert [v.status for v in check(rows, [gate], "quick")] == ["undecidable", "failed"]
+
+
+def test_a_speedup_gate_met_only_by_an_upper_bound_is_undecidable_and_a_bound_below_it_fails():
+    note = "at most: less accurate than the coarsest ladder run"
+    rows = pd.DataFrame([{"suite": "quick", "scenario": f"quick/{i}", "solver": "licrom", "variant": "m",
+                          "status": "ok", "speedup_equal_accuracy": s, "frontier_note": n}
+                         for i, (s, n) in enumerate([(20.0, note), (5.0, note), (20.0, "")])])
+    gate = {"suite": "quick", "variant": "licrom/m", "metric": "speedup_equal_accuracy", "min": 10.0}
+    assert [v.status for v in check(rows, [gate], "quick")] == ["undecidable", "failed", "passed"]
 
 
 def test_undecidable_is_no_failure_of_gate_nor_a_regression_of_compare(tmp_path: Path):

@@ -202,7 +202,8 @@ def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     assert path == tmp_path / "report.html" and page.startswith("<!DOCTYPE html>")
     checker = check_html(page)
     assert all(ref.startswith("#") for ref in checker.refs)  # no src, no external link
-    assert checker.headings == ["Summary", "Accuracy versus time", "Ground-truth ladders", "Error over time",
+    assert checker.headings == ["Summary", "Accuracy versus time", "Ground-truth ladders",
+                                "Where the error comes from", "Error over time",
                                 "3D viewer", "Reference time-step convergence", "Stick/slip agreement",
                                 "Remeshing", "Stability", "Gate verdicts", "Results", "Notes", "Provenance"]
     assert page.count(plotly_js()) == 1  # plotly.js inline, once
@@ -239,6 +240,8 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
                                                                   "failed" if s == "slope" else "ok")]:
             rows.append({"scenario": s, "solver": solver, "variant": variant, "dt": 0.01, "status": status,
                          "err_truth": err, "pos_rmse_rel": err / 2, "wall_s_per_sim_s": wall,
+                         "err_time": None if variant == "reference" else 0.05,
+                         "err_projection": err / 4 if solver != "full" else None,
                          "speedup_equal_accuracy": speed, "speedup": 99.0, "stick_agree": agree,
                          "integrator": "backward-euler", "ladder": "",
                          "frontier_note": "less accurate than every ladder level" if solver == "pod" else "", **truth})
@@ -276,6 +279,11 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     assert ladders[0]["x"] == [40.0, 80.0, 160.0]  # the truth itself (error 0) is not on the log axis
     assert figs["frontier"]["layout"]["xaxis"]["title"]["text"].startswith("wall_s_per_sim_s")
     assert any("error estimate" in t["name"] for t in figs["ladders-plot"]["data"])
+    parts = {t["name"].split(":")[0]: dict(zip(t["x"], t["y"])) for t in figs["error-parts-plot"]["data"]}
+    assert list(parts) == ["projection", "reduction", "time step", "total"]  # no reference, no ladder among them
+    assert set(parts["total"]) == {"licrom/r10", "licrom/r20", "pod/r20"}
+    assert parts["projection"]["licrom/r20"] == pytest.approx(0.0075) and parts["time step"]["pod/r20"] == 0.05
+    assert parts["reduction"]["pod/r20"] == pytest.approx(0.1)  # the median of its scenarios' pos_rmse_rel
 
 
 def test_headline_without_ground_truth_falls_back_to_the_reference(runs) -> None:

@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from analysis.truth import (MIN_ORDER, assess_ladder, decidable, full_space_cost, ladder_continues, pareto_front,
-                            richardson, speedup_equal_accuracy, wall_s_per_sim_s, with_frontier)
+from analysis.truth import (AT_MOST, MIN_ORDER, assess_ladder, decidable, full_space_cost, ladder_continues,
+                            pareto_front, richardson, speedup_equal_accuracy, wall_s_per_sim_s, with_frontier)
 
 
 def climb(C: float, p: float, dt: float, tol: float, depth: int) -> tuple[list[float], list[float]]:
@@ -79,8 +79,11 @@ def test_speedup_at_equal_accuracy_interpolates_the_ladder_log_log():
     assert cost == pytest.approx(20 * math.sqrt(2), rel=1e-6) and note == ""
     speedup, _ = speedup_equal_accuracy(front, 0.025, 4.0)  # as accurate as the 40 s/s run at a tenth of its cost
     assert speedup == pytest.approx(10.0)
-    cost, note = full_space_cost(front, 0.2)  # less accurate than the coarsest: extrapolated along the first segment
-    assert cost == pytest.approx(5.0) and "extrapolated" in note
+    cost, note = full_space_cost(front, 0.2)  # less accurate than the coarsest: at most the coarsest run's cost
+    assert cost == pytest.approx(10.0) and note == AT_MOST
+    speedup, note = speedup_equal_accuracy(front, 0.4, 2.0)  # an upper bound, never an extrapolation (2.5 here)
+    assert speedup == pytest.approx(5.0) and note == AT_MOST
+    assert full_space_cost(front[:1], 0.1) == (10.0, "") and full_space_cost(front[:1], 0.3) == (10.0, AT_MOST)
     speedup, note = speedup_equal_accuracy(front, 0.001, 1.0)
     assert speedup is None and note == "more accurate than the ladder"
 
