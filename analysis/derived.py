@@ -1,4 +1,5 @@
-"""Figures derived across rows of the results table: how much remeshing costs a reduced model.
+"""Figures derived across rows of the results table: how much remeshing costs a reduced model, and how far the
+reference moves when its time step is refined.
 
 Rows are the results table's rows as dicts (`bench.runner.collect_rows`) or a DataFrame read from results.csv.
 """
@@ -24,6 +25,22 @@ def with_remesh_ratio(rows: list[dict]) -> list[dict]:
             r = r | {"remesh_ratio": ratio}
         out.append(r)
     return out
+
+
+def with_ref_dt_change(rows: list[dict]) -> list[dict]:
+    """Rows with `ref_dt_change` on every row of a scenario that has a run of the reference's solver on the
+    reference's mesh at a smaller time step than the reference's: that run's pos_rmse_rel against the reference
+    (the smallest such dt where there are several). It is how far the reference moves when its time step is
+    refined: where the error shrinks with dt the reference's own time-discretisation error is at least half of it,
+    and about twice it once backward Euler is in its first-order range; a reduced model's error of that order is
+    within the reference's own accuracy."""
+    refs = {r["scenario"]: r for r in rows if r.get("variant") == "reference"}
+    ref_dt = {name: r.get("dt") or 0.0 for name, r in refs.items()}
+    finer = [r for r in rows if r["scenario"] in refs and r.get("solver") == refs[r["scenario"]].get("solver")
+             and not r.get("remesh") and not r.get("ladder") and r.get("status") == "ok"
+             and r.get("dt") is not None and r["dt"] < ref_dt.get(r["scenario"], 0.0)]
+    change = {r["scenario"]: r.get("pos_rmse_rel") for r in sorted(finer, key=lambda r: -r["dt"])}  # finest last
+    return [r | {"ref_dt_change": change[r["scenario"]]} if r["scenario"] in change else r for r in rows]
 
 
 def remeshing_summary(frame: pd.DataFrame) -> pd.DataFrame:

@@ -32,7 +32,7 @@ def grid(solver: str, label: str, base: dict | None = None, **axes: list) -> lis
 
 
 #: The full-space solver at half the reference's time step: how far the reference itself is from time-converged
-#: (results rows get it as `ref_dt_change`, bench/runner.py `with_ref_dt_change`).
+#: (results rows get it as `ref_dt_change`, analysis/derived.py `with_ref_dt_change`).
 DT_HALF = Variant("full", {}, label="dt-half", dt_scale=0.5)
 
 #: The full-space solver with BDF2 (second order, `solvers.integrators`) instead of the reference's backward Euler, at

@@ -122,7 +122,7 @@ def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_trai
 
 
 def test_ref_dt_change_is_the_finest_full_space_run_on_the_reference_mesh():
-    from bench.runner import with_ref_dt_change
+    from analysis.derived import with_ref_dt_change
 
     def row(scenario, variant, dt, err, solver="full", remesh="", status="ok"):
         return {"scenario": scenario, "solver": solver, "variant": variant, "dt": dt, "pos_rmse_rel": err,
