@@ -36,9 +36,11 @@ TIMING_COLUMNS: tuple[str, ...] = ("setup_s", "train_s", "jit_s", "step_ms_media
 #: (the same on every row of a scenario) and, on ladder rows, the ladder's integrator. A variant's error against the
 #: truth has three parts: err_time (the full-space run it is compared with, against the truth), pos_rmse_rel (the
 #: reduction, against that run) and err_projection (the truth projected onto its subspace, where it has one).
+#: truth_horizon_s: how long the truth meets the ladder's tolerance frame by frame; err_truth_horizon: err_truth
+#: over the frames up to then.
 TRUTH_COLUMNS: tuple[str, ...] = (
-    "integrator", "err_truth", "err_time", "err_projection", "wall_s_per_sim_s", "speedup_equal_accuracy",
-    "frontier_note", "truth_certified",
+    "integrator", "err_truth", "err_truth_horizon", "err_time", "err_projection", "wall_s_per_sim_s",
+    "speedup_equal_accuracy", "frontier_note", "truth_certified", "truth_horizon_s",
     "truth_err_est", "truth_order", "truth_dt", "truth_depth", "truth_integrator", "ladder")
 METRIC_COLUMNS: tuple[str, ...] = STATUS_COLUMNS + METRIC_KEYS + TIMING_COLUMNS + TRUTH_COLUMNS
 

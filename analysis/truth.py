@@ -6,6 +6,9 @@ differences d_k = pos_rmse_rel(x_{k-1}, x_k) (fractions of L, over the shared fr
 first level whose difference is at most `tol` (certified), or at `depth` (uncertified). The truth is the finest
 run; its error is estimated by Richardson from the observed order (`richardson`).
 
+A truth that does not certify over the whole run may still certify over its first part: `certified_horizon` is
+the end of the longest first stretch of frames on which the two finest runs differ by at most `tol` frame by frame.
+
 The frontier of a scenario is err_truth (against the truth) versus cost, wall_s_per_sim_s (stepping wall time per
 simulated second). `speedup_equal_accuracy` of any run is the full-space ladder's cost interpolated log-log at the
 run's err_truth, divided by the run's own cost (`full_space_cost`).
@@ -94,6 +97,18 @@ def assess_ladder(differences: Sequence[float], tol: float, integrator: str) -> 
     est, p, observed = richardson(differences, integrator)
     certified = bool(differences) and differences[-1] <= tol
     return TruthEstimate(level=len(differences), certified=certified, err_est=est, order=p, order_observed=observed)
+
+
+def certified_horizon(t: Sequence[float], frame_differences: Sequence[float], tol: float) -> float | None:
+    """The end [s] of the longest first stretch of frames on which the ladder's two finest runs differ by at most
+    `tol` frame by frame (per-frame RMS over the vertices / L, `analysis.metrics.error_over_time`): up to there the
+    truth meets the ladder's tolerance even where the whole run does not (a trajectory that converges early and
+    drifts late). t (F,) [s] increasing; None without frames or when the first frame already differs."""
+    ok = [float(e) <= tol for e in frame_differences]
+    if not ok or not ok[0]:
+        return None
+    n = ok.index(False) if False in ok else len(ok)
+    return float(t[n - 1])
 
 
 def decidable(limit: float, certified: bool, err_est: float | None, factor: float = UNDECIDABLE_FACTOR) -> bool:

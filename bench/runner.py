@@ -16,13 +16,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from analysis.derived import with_ref_dt_change, with_remesh_ratio
-from analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
+from analysis.metrics import compare, error_over_time, pos_rmse_rel, proj_rmse_rel
 from analysis.table import write_results_csv
 from analysis.transfer import transfer_to_mesh
-from analysis.truth import TruthEstimate, assess_ladder, ladder_continues, wall_s_per_sim_s, with_frontier
+from analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, ladder_continues, wall_s_per_sim_s,
+                            with_frontier)
 from bench.executors import make_executor
 from bench.payload import Artefact, RunResult, artefact_folders, localised
 from bench.store import RunStore, run_key
@@ -266,6 +268,8 @@ class Ladder:
     tasks: list[Task] = field(default_factory=list)
     differences: list[float] = field(default_factory=list)
     failed: bool = False
+    #: (t (F,) [s], per-frame difference (F,) [fraction of L]) of the last two levels
+    frame_differences: tuple[np.ndarray, np.ndarray] | None = None
 
     def task(self, k: int) -> Task:
         """The task of level k."""
@@ -281,6 +285,7 @@ class Ladder:
         self.tasks.append(task)
         if previous is not None:
             self.differences.append(pos_rmse_rel(previous, traj))
+            self.frame_differences = error_over_time(previous, traj)
         return traj
 
     @property
@@ -329,9 +334,10 @@ def truth_columns(ladders: dict[str, Ladder], spec_tol: float) -> tuple[dict, Tr
         return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
     est = assess_ladder(truth.differences, spec_tol, truth.integrator)
     finest = truth.tasks[-1]
+    horizon = certified_horizon(*truth.frame_differences, spec_tol) if truth.frame_differences else None
     return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
              "truth_order": est.order, "truth_dt": finest.scenario.time.dt, "truth_depth": est.level,
-             "truth_integrator": truth.integrator}, est, finest)
+             "truth_integrator": truth.integrator, "truth_horizon_s": horizon}, est, finest)
 
 
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:
@@ -373,16 +379,20 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
         ref, ref_stats = store.load(ref_task.key)
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
-        truth_traj = None
+        truth_traj = truth_early = None
         if ladders and sc.name in ladders:
             columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0)
             base |= columns
             truth_traj = store.load(truth_task.key)[0] if truth_task else None
+            if truth_traj is not None and columns.get("truth_horizon_s") is not None:
+                truth_early = truth_traj.until(columns["truth_horizon_s"])
 
-        def err_truth(traj, other_mesh: bool = False, truth_traj=truth_traj) -> dict:
+        def err_truth(traj, other_mesh: bool = False, truth_traj=truth_traj, truth_early=truth_early) -> dict:
             if truth_traj is None or traj is None:
                 return {}
-            return {"err_truth": pos_rmse_rel(truth_traj, transfer_to_mesh(traj, truth_traj) if other_mesh else traj)}
+            here = transfer_to_mesh(traj, truth_traj) if other_mesh else traj
+            return ({"err_truth": pos_rmse_rel(truth_traj, here)}
+                    | ({"err_truth_horizon": pos_rmse_rel(truth_early, here)} if truth_early is not None else {}))
 
         def error_parts(traj, run_ref, other_mesh: bool, truth_traj=truth_traj) -> dict:
             """err_time: the full-space run this row is compared with, against the truth; err_projection: the

@@ -137,7 +137,10 @@ def truth_summary(frame: pd.DataFrame) -> str:
     certified = (frame[has].groupby(scen[has])["truth_certified"].first().map(_truthy)
                  if "truth_certified" in frame else pd.Series(False, index=scenarios))
     est = numeric_column(frame[has], "truth_err_est").max()
-    uncertified = [s for s in scenarios if not certified.get(s, False)]
+    horizon = numeric_column(frame[has], "truth_horizon_s").groupby(scen[has]).first()
+    uncertified = [s + (f" (within tolerance up to t = {horizon[s]:.3g} s)" if np.isfinite(horizon.get(s, np.nan))
+                        else "")
+                   for s in scenarios if not certified.get(s, False)]
     text = (f"Accuracy against the ground truth (err_truth, fraction of the body's size L) on {len(scenarios)} "
             f"scenarios, certified on {int(certified.sum())}"
             + (f" (largest error estimate {est:.2g} L)" if np.isfinite(est) else "")

@@ -185,7 +185,7 @@ def _results(frame: pd.DataFrame) -> str:
                                "pos_rmse_rel", "proj_rmse_rel",
                                "com_err_rel", "final_err_rel", "slide_err_rel", "stick_agree", "wall_s_per_sim_s",
                                "step_ms_median", "speedup", "speedup_equal_accuracy", "frontier_note",
-                               "truth_certified", "truth_err_est"])
+                               "truth_certified", "truth_err_est", "truth_horizon_s", "err_truth_horizon"])
     return _table(summary, verdicts=["status", "stick_agree"])
 
 

@@ -46,6 +46,13 @@ class Trajectory:
         """Number of stored frames F."""
         return int(self.t.shape[0])
 
+    def until(self, t_end: float) -> Trajectory:
+        """The frames at times t <= t_end [s] (the same arrays sliced, not copied)."""
+        n = int(np.searchsorted(self.t, t_end, side="right"))
+        return Trajectory(t=self.t[:n], x=self.x[:n], X=self.X, tets=self.tets, surface=self.surface,
+                          v=None if self.v is None else self.v[:n], q=None if self.q is None else self.q[:n],
+                          basis=self.basis, meta=self.meta)
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write to `path` (.npz) atomically; returns the path."""
         arrays = {"t": self.t, "x": self.x, "X": self.X, "tets": self.tets, "surface": self.surface}

@@ -11,8 +11,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.metrics import pos_rmse_rel, proj_rmse_rel
-from analysis.truth import richardson
+from analysis.metrics import error_over_time, pos_rmse_rel, proj_rmse_rel
+from analysis.truth import certified_horizon, richardson
 from bench.cli import main
 from bench.compare import compare_results
 from bench.gates import check
@@ -160,6 +160,26 @@ def test_every_variant_row_splits_its_error_into_projection_reduction_and_time(t
         assert row["err_truth"] <= row["pos_rmse_rel"] + row["err_time"] + 1e-12  # the RMS triangle inequality
     assert pd.isna(runs.loc["dt-half", "err_projection"])  # a full-space run has no subspace
     assert pd.isna(ref.get("err_time")) and "Where the error comes from" in _report(out)
+
+
+def test_a_truth_is_certified_up_to_the_frame_where_its_two_finest_runs_part(tmp_path: Path):
+    suite = tmp_path / "ladder.toml"
+    suite.write_text(SUITE)
+    out = tmp_path / "out"
+    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False))
+    store = RunStore(out / "runs")
+    ladder = rows[rows["ladder"] == "backward-euler"].sort_values("dt", ascending=False)
+    coarse, fine = (store.load(key)[0] for key in ladder["run"].iloc[1:])
+    t, e = error_over_time(coarse, fine)
+    assert rows["truth_horizon_s"].iloc[0] == 0.0  # tol 1e-6: only the initial frame agrees that well
+    tol = 1.0001 * max(e[:2])  # the first two frames within it, and the whole run (RMS) not: still depth 2
+    assert tol < min(pos_rmse_rel(coarse, fine), ladder["err_truth"].iloc[0]) and e[-1] > tol
+    again = pd.read_csv(run_suite(str(suite), out, variants=[], report=False, truth_overrides={"tol": tol}))
+    horizon = again["truth_horizon_s"].iloc[0]
+    assert horizon == certified_horizon(t, e, tol) and t[1] <= horizon < t[-1]
+    ref = again[again["variant"] == "reference"].iloc[0]
+    assert ref["err_truth_horizon"] == pytest.approx(pos_rmse_rel(fine.until(horizon), store.load(ref["run"])[0]))
+    assert ref["err_truth_horizon"] < ref["err_truth"]  # the frames where the ladder has not converged count
 
 
 def _report(out: Path) -> str:

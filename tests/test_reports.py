@@ -233,7 +233,7 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     rows = []
     for s, certified, est in [("drop", True, 0.001), ("slope", False, 0.02)]:
         truth = {"truth_certified": certified, "truth_err_est": est, "truth_dt": 0.00125, "truth_depth": 3,
-                 "truth_integrator": "bdf2"}
+                 "truth_integrator": "bdf2", "truth_horizon_s": 2.0 if certified else 0.55}
         for solver, variant, err, wall, speed, agree, status in [
                 ("full", "reference", 0.05, 40.0, 1.0, True, "ok"), ("licrom", "r20", 0.03, 2.0, 25.0, True, "ok"),
                 ("licrom", "r10", 0.08, 1.0, 30.0, False, "ok"), ("pod", "r20", 0.2, 1.5, float("nan"), False,
@@ -268,7 +268,8 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     page = write_report_html(frame, tmp_path, gates=gates).read_text(encoding="utf-8")
     check_html(page)
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
-    assert "certified on 1" in summary and "not certified: slope" in summary and "No ground truth" not in summary
+    assert "certified on 1" in summary and "No ground truth" not in summary
+    assert "not certified: slope (within tolerance up to t = 0.55 s)" in summary
     assert "Gates: 0 of 2 passed, 1 failed, 1 undecidable" in summary
     stability = page[page.index('id="stability"'):page.index('id="gate-verdicts"')]
     assert "undecidable: err_truth" in stability and "fail: finite" in stability

@@ -7,8 +7,9 @@ import math
 
 import pytest
 
-from analysis.truth import (AT_MOST, MIN_ORDER, assess_ladder, decidable, full_space_cost, ladder_continues,
-                            pareto_front, richardson, speedup_equal_accuracy, wall_s_per_sim_s, with_frontier)
+from analysis.truth import (AT_MOST, MIN_ORDER, assess_ladder, certified_horizon, decidable, full_space_cost,
+                            ladder_continues, pareto_front, richardson, speedup_equal_accuracy, wall_s_per_sim_s,
+                            with_frontier)
 
 
 def climb(C: float, p: float, dt: float, tol: float, depth: int) -> tuple[list[float], list[float]]:
@@ -109,3 +110,10 @@ def test_every_integrator_of_the_scenarios_has_a_formal_order():
     from scenarios.model import INTEGRATORS
 
     assert set(FORMAL_ORDER) == set(INTEGRATORS)
+
+
+def test_the_certified_horizon_ends_before_the_first_frame_out_of_tolerance():
+    t = [0.0, 0.1, 0.2, 0.3, 0.4]
+    assert certified_horizon(t, [0.0, 0.001, 0.004, 0.006, 0.002], 0.005) == 0.2  # a later return does not count
+    assert certified_horizon(t, [0.0] * 5, 0.005) == 0.4
+    assert certified_horizon(t, [0.01] * 5, 0.005) is None and certified_horizon([], [], 0.005) is None
