@@ -368,10 +368,11 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
                  ladders: dict[str, dict[str, Ladder]] | None = None, truth: TruthSpec | None = None) -> list[dict]:
     """One results row per (member, variant) plus one per reference and one per ladder run: identity, metrics,
     timings; with ladders, every row also gets err_truth (against its scenario's truth; remeshed runs carried onto
-    the truth's mesh first), the truth's columns (`truth_columns`) and the frontier's (`with_frontier`), and every
-    variant row its error's parts: err_time (the full-space run it is compared with, against the truth: the time
-    step's share), pos_rmse_rel (against that run: the reduction's share) and, with a subspace, err_projection
-    (the truth projected onto it: the basis's share)."""
+    the truth's mesh first) and err_truth_horizon (the same over the frames up to the truth's certified horizon), the
+    truth's columns (`truth_columns`) and the frontier's (`with_frontier`), and every variant row its error's parts:
+    err_time (the full-space run it is compared with, against the truth: the time step's share), pos_rmse_rel
+    (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
+    basis's share)."""
     rows = []
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
