@@ -349,16 +349,28 @@ def green_strain(F: wp.mat33d) -> wp.mat33d:
 
 
 @wp.func
-def strain_change(F: wp.mat33d, x_bar: wp.array(dtype=wp.vec3d), tet: wp.vec4i, Dmi: wp.mat33d) -> wp.mat33d:
+def strain_change(F: wp.mat33d, E_bar: wp.mat33d) -> wp.mat33d:
     """A = E(F) - E(F_bar): the Green strain at F minus that at the integrator's x_bar (the viscous term's rate
     times h_eff)."""
-    return green_strain(F) - green_strain(deformation_gradient(x_bar, tet, Dmi))
+    return green_strain(F) - E_bar
+
+
+@wp.kernel
+def green_strain_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    strain: wp.array(dtype=wp.mat33d),
+):
+    """strain[e] = E(F_e(x)), the Green strain of each tet: the viscous term's E(F_bar), once per step."""
+    e = wp.tid()
+    strain[e] = green_strain(deformation_gradient(x, tets[e], Dm_inv[e]))
 
 
 @wp.kernel
 def viscous_energy_kernel(
     x: wp.array(dtype=wp.vec3d),
-    x_bar: wp.array(dtype=wp.vec3d),
+    E_bar: wp.array(dtype=wp.mat33d),
     tets: wp.array(dtype=wp.vec4i),
     Dm_inv: wp.array(dtype=wp.mat33d),
     vol: wp.array(dtype=f64),
@@ -367,14 +379,14 @@ def viscous_energy_kernel(
 ):
     """energy[0] += V_e eta / h_eff |E(F) - E(F_bar)|_F^2 (see solvers.physics.viscosity)."""
     e = wp.tid()
-    A = strain_change(deformation_gradient(x, tets[e], Dm_inv[e]), x_bar, tets[e], Dm_inv[e])
+    A = strain_change(deformation_gradient(x, tets[e], Dm_inv[e]), E_bar[e])
     wp.atomic_add(energy, 0, vol[e] * eta_over_h * wp.ddot(A, A))
 
 
 @wp.kernel
 def viscous_gradient_kernel(
     x: wp.array(dtype=wp.vec3d),
-    x_bar: wp.array(dtype=wp.vec3d),
+    E_bar: wp.array(dtype=wp.mat33d),
     tets: wp.array(dtype=wp.vec4i),
     Dm_inv: wp.array(dtype=wp.mat33d),
     vol: wp.array(dtype=f64),
@@ -386,7 +398,7 @@ def viscous_gradient_kernel(
     tet = tets[e]
     Dmi = Dm_inv[e]
     F = deformation_gradient(x, tet, Dmi)
-    FA = F * strain_change(F, x_bar, tet, Dmi)
+    FA = F * strain_change(F, E_bar[e])
     c = vol[e] * eta_over_h
     for a in range(4):
         wp.atomic_add(grad, tet[a], f64(2.0) * c * (FA * shape_gradient(Dmi, a)))
@@ -395,7 +407,7 @@ def viscous_gradient_kernel(
 @wp.kernel
 def viscous_hessian_kernel(
     x: wp.array(dtype=wp.vec3d),
-    x_bar: wp.array(dtype=wp.vec3d),
+    E_bar: wp.array(dtype=wp.mat33d),
     tets: wp.array(dtype=wp.vec4i),
     Dm_inv: wp.array(dtype=wp.mat33d),
     vol: wp.array(dtype=f64),
@@ -409,7 +421,7 @@ def viscous_hessian_kernel(
     tet = tets[e]
     Dmi = Dm_inv[e]
     F = deformation_gradient(x, tet, Dmi)
-    A = strain_change(F, x_bar, tet, Dmi)
+    A = strain_change(F, E_bar[e])
     c = vol[e] * eta_over_h
     Q = wp.mat33d()
     lam = wp.vec3d()

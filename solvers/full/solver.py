@@ -82,8 +82,9 @@ class BlockPattern:
 class FullSpaceSolver:
     """Newton on the incremental potential of the scenario's integrator, kernels on `device` (`cpu` or `cuda`).
 
-    Per step it holds the integrator's constants: warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar,
-    and the effective step h_eff [s] (`solvers.integrators`)."""
+    Per step it holds the integrator's constants: warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar
+    (with viscosity also strain_bar, the Green strain per tet at x_bar), and the effective step h_eff [s]
+    (`solvers.integrators`)."""
 
     name = "full"
 
@@ -123,6 +124,7 @@ class FullSpaceSolver:
         self.x_hat = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_prev = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_bar = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.strain_bar = wp.zeros(model.tets.shape[0], dtype=wp.mat33d, device=d)  # E(F(x_bar)) per tet
         self.grad = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.values = wp.zeros(self.pattern.nnzb, dtype=wp.mat33d, device=d)
         self.elem_blocks = wp.zeros(16 * model.tets.shape[0], dtype=wp.mat33d, device=d)
@@ -192,6 +194,16 @@ class FullSpaceSolver:
                              c.stiffness, m.contact_damping, c.barrier_stiffness, c.barrier_distance)
         self.fn.assign(np.ascontiguousarray(fn))
 
+    def set_x_bar(self, x_bar: np.ndarray) -> None:
+        """The step's x_bar (n, 3) [m] and, with viscosity, the Green strain of every tet there (`strain_bar`):
+        fixed within the step, so computed once per step, not per Newton iteration."""
+        self.x_bar.assign(x_bar)
+        if self.model.has("viscosity"):
+            from solvers.full import kernels as K
+
+            wp.launch(K.green_strain_kernel, self.model.tets.shape[0], device=self.device,
+                      inputs=[self.x_bar, self.tets, self.Dm_inv, self.strain_bar])
+
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """Advance state_in by dt into state_out (the scenario's integrator; BDF2 uses state_in.previous when it is
         one step dt back); returns the step's statistics."""
@@ -204,7 +216,7 @@ class FullSpaceSolver:
         x_hat = lag.y_tilde
         self.x_hat.assign(x_hat)
         self.x_prev.assign(state_in.x)
-        self.x_bar.assign(lag.y_bar)
+        self.set_x_bar(lag.y_bar)
         if m.has("friction"):
             self._lag_normal_pressure(state_in)
         x = x_hat.copy()

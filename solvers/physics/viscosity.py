@@ -162,7 +162,8 @@ class Viscosity(BodyTerm):
                                                               model.viscosity / step.h_eff))
 
     def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        """The step's x_bar and h_eff are the solver's (`FullSpaceSolver.x_bar`, `h_eff`)."""
+        """The step's E(F_bar) and h_eff are the solver's (`FullSpaceSolver.strain_bar`, computed once per step
+        from x_bar, and `h_eff`)."""
         if not inertia:
             return
         import warp as wp
@@ -170,12 +171,13 @@ class Viscosity(BodyTerm):
         from solvers.full import kernels as K
 
         m, d = solver.model, solver.device
-        ins = [x, solver.x_bar, solver.tets, solver.Dm_inv, solver.vol, m.viscosity / solver.h_eff]
+        ins = [x, solver.strain_bar, solver.tets, solver.Dm_inv, solver.vol, m.viscosity / solver.h_eff]
         if mode == 0:
             wp.launch(K.viscous_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.energy_buf])
         else:
             wp.launch(K.viscous_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.grad])
-            solver.elements.launch(K.viscous_hessian_kernel, ins + [solver.elem_blocks], {2: 1, 3: 1, 4: 1, 6: 16})
+            solver.elements.launch(K.viscous_hessian_kernel, ins + [solver.elem_blocks],
+                                   {1: 1, 2: 1, 3: 1, 4: 1, 6: 16})
             wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
                       inputs=[solver.elem_blocks, solver.blockmap, solver.values])
 
