@@ -84,11 +84,18 @@ def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):
     assert not (out / "runs").exists()
 
 
-def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp_path: Path):
+def _ladder(tmp_path: Path, variants=(), **options) -> pd.DataFrame:
+    """The results rows of SUITE (written to tmp_path, output in tmp_path / "out") run with `variants`
+    (`run_suite`'s `options`); a second call resumes from the stored runs."""
     suite = tmp_path / "ladder.toml"
-    suite.write_text(SUITE)
+    if not suite.exists():
+        suite.write_text(SUITE)
+    return pd.read_csv(run_suite(str(suite), tmp_path / "out", variants=list(variants), report=False, **options))
+
+
+def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp_path: Path):
     out = tmp_path / "out"
-    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False))
+    rows = _ladder(tmp_path)
     store = RunStore(out / "runs")
     ladder = rows[rows["ladder"] == "backward-euler"].sort_values("dt", ascending=False)
     assert list(ladder["variant"]) == [f"ladder-backward-euler-{k}" for k in range(3)]
@@ -109,12 +116,12 @@ def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp
     assert (rows["integrator"] == "backward-euler").all()
     # a looser tolerance certifies at the first halving, from the stored runs (nothing is recomputed)
     stamps = {key: (store.folder(key) / "stats.json").stat().st_mtime_ns for key in ladder["run"]}
-    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False, truth_overrides={"tol": 0.5}))
+    rows = _ladder(tmp_path, truth_overrides={"tol": 0.5})
     ref = rows[rows["variant"] == "reference"].iloc[0]
     assert ref["truth_certified"] and ref["truth_depth"] == 1 and ref["truth_err_est"] == pytest.approx(d[0])
     assert all((store.folder(k) / "stats.json").stat().st_mtime_ns == t for k, t in stamps.items())
     assert json.loads((out / "run.json").read_text())["truth"]["tol"] == 0.5
-    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False, with_truth=False))
+    rows = _ladder(tmp_path, with_truth=False)
     assert "err_truth" not in rows and "ladder" not in rows
 
 
@@ -140,11 +147,8 @@ def test_an_uncertified_truth_makes_a_tight_accuracy_verdict_undecidable():
 
 
 def test_every_variant_row_splits_its_error_into_projection_reduction_and_time(tmp_path: Path):
-    suite = tmp_path / "ladder.toml"
-    suite.write_text(SUITE)
     out = tmp_path / "out"
-    variants = [Variant("affine", {}, label="affine12"), Variant("pod", {"r": 4}, label="r4"), DT_HALF]
-    rows = pd.read_csv(run_suite(str(suite), out, variants=variants, report=False))
+    rows = _ladder(tmp_path, [Variant("affine", {}, label="affine12"), Variant("pod", {"r": 4}, label="r4"), DT_HALF])
     store = RunStore(out / "runs")
     ref = rows[rows["variant"] == "reference"].iloc[0]
     truth = store.load(rows[rows["frontier_note"] == "the truth"].iloc[0]["run"])[0]
@@ -163,18 +167,15 @@ def test_every_variant_row_splits_its_error_into_projection_reduction_and_time(t
 
 
 def test_a_truth_is_certified_up_to_the_frame_where_its_two_finest_runs_part(tmp_path: Path):
-    suite = tmp_path / "ladder.toml"
-    suite.write_text(SUITE)
-    out = tmp_path / "out"
-    rows = pd.read_csv(run_suite(str(suite), out, variants=[], report=False))
-    store = RunStore(out / "runs")
+    rows = _ladder(tmp_path)
+    store = RunStore(tmp_path / "out" / "runs")
     ladder = rows[rows["ladder"] == "backward-euler"].sort_values("dt", ascending=False)
     coarse, fine = (store.load(key)[0] for key in ladder["run"].iloc[1:])
     t, e = error_over_time(coarse, fine)
     assert rows["truth_horizon_s"].iloc[0] == 0.0  # tol 1e-6: only the initial frame agrees that well
     tol = 1.0001 * max(e[:2])  # the first two frames within it, and the whole run (RMS) not: still depth 2
     assert tol < min(pos_rmse_rel(coarse, fine), ladder["err_truth"].iloc[0]) and e[-1] > tol
-    again = pd.read_csv(run_suite(str(suite), out, variants=[], report=False, truth_overrides={"tol": tol}))
+    again = _ladder(tmp_path, truth_overrides={"tol": tol})
     horizon = again["truth_horizon_s"].iloc[0]
     assert horizon == certified_horizon(t, e, tol) and t[1] <= horizon < t[-1]
     ref = again[again["variant"] == "reference"].iloc[0]
