@@ -60,6 +60,16 @@ PROVENANCE_COLUMNS: tuple[str, ...] = (
 )
 
 
+def truthy(value: object) -> bool:
+    """A boolean cell of the results as read from results.csv or built in memory: True, 'true'/'True', 'yes', 1 and
+    '1'/'1.0' are true; missing (None, NaN) is false."""
+    if value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value))):
+        return False
+    if isinstance(value, str):
+        return value.strip().lower() in ("true", "yes", "1", "1.0")
+    return bool(value)
+
+
 def column_order(keys: Iterable[str]) -> list[str]:
     """The keys of the results rows in table order: identity, parameters, metrics, provenance (see module doc)."""
     keys = list(dict.fromkeys(keys))

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.table import variant_labels
+from analysis.table import truthy, variant_labels
 from analysis.truth import AT_MOST, MORE_ACCURATE, decidable
 
 #: Metrics that are errors against the ground truth: their `max` gates can be undecidable.
@@ -83,13 +83,6 @@ def _passes(value: object, gate: dict) -> bool:
     return ("max" not in gate or v <= gate["max"]) and ("min" not in gate or v >= gate["min"])
 
 
-def _flag(value: object) -> bool:
-    """A results cell as a bool (`True`/`true`/1 are true; missing is false)."""
-    if value is None or (isinstance(value, float) and pd.isna(value)):
-        return False
-    return str(value).strip().lower() in ("true", "1", "1.0", "yes")
-
-
 def _undecidable(row: pd.Series, gate: dict) -> bool:
     """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
     estimate is too large for the limit (`analysis.truth.decidable`), or a gate on the speedup at equal accuracy
@@ -104,7 +97,7 @@ def _undecidable(row: pd.Series, gate: dict) -> bool:
     if "truth_err_est" not in row and "truth_certified" not in row:
         return False  # no truth for these results: judged as before
     est = pd.to_numeric(pd.Series([row.get("truth_err_est")]), errors="coerce").iloc[0]
-    return not decidable(float(gate["max"]), _flag(row.get("truth_certified")), None if pd.isna(est) else float(est))
+    return not decidable(float(gate["max"]), truthy(row.get("truth_certified")), None if pd.isna(est) else float(est))
 
 
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from analysis.table import variant_labels
+from analysis.table import truthy, variant_labels
 from reports.plots import accuracy_columns, ladder_mask, numeric_column
 
 #: Metrics of the gates and advisory checks that judge stability (a run's stability fails when one of them does).
@@ -37,26 +37,17 @@ def verdict_frame(gates: Sequence[object]) -> pd.DataFrame:
     frame = pd.DataFrame(rows)
     if frame.empty:
         return frame
-    passed = frame["passed"].map(_truthy) if "passed" in frame else pd.Series(False, index=frame.index)
+    passed = frame["passed"].map(truthy) if "passed" in frame else pd.Series(False, index=frame.index)
     own = frame["status"] if "status" in frame else pd.Series(None, index=frame.index, dtype=object)
     frame["status"] = own.where(own.notna(), passed.map({True: "passed", False: "failed"}))
     frame["passed"] = passed
     return frame
 
 
-def _truthy(value: object) -> bool:
-    """A boolean cell as read from a CSV or a table: True, 'true', 'True', 1 are true; missing is false."""
-    if value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value))):
-        return False
-    if isinstance(value, str):
-        return value.strip().lower() in ("true", "yes", "1")
-    return bool(value)
-
-
 def _runs_ok(frame: pd.DataFrame) -> pd.Series:
     """Runs that finished (status ok or missing), with finite positions and no unconverged step."""
     status = frame["status"].fillna("ok").astype(str) if "status" in frame else pd.Series("ok", index=frame.index)
-    finite = frame["finite"].map(lambda v: True if v is None or pd.isna(v) else _truthy(v)) if "finite" in frame \
+    finite = frame["finite"].map(lambda v: True if v is None or pd.isna(v) else truthy(v)) if "finite" in frame \
         else pd.Series(True, index=frame.index)
     unconverged = numeric_column(frame, "not_converged").fillna(0.0)
     return (status == "ok") & finite.astype(bool) & (unconverged == 0)
@@ -103,11 +94,11 @@ def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.Data
     rows = []
     for family, label in best.items():
         g = frame[(labels == label) & ~ladder_mask(frame)]
-        stick = g["stick_agree"].dropna().map(_truthy) if "stick_agree" in g else pd.Series(dtype=bool)
+        stick = g["stick_agree"].dropna().map(truthy) if "stick_agree" in g else pd.Series(dtype=bool)
         scen = g["scenario"].astype(str) if "scenario" in g else pd.Series("", index=g.index)
         stable = _runs_ok(g) & ~pd.Series([(s, label) in unstable for s in scen], index=g.index, dtype=bool)
         if "truth_certified" in g and cols.truth:
-            per_scenario = g.groupby(scen)["truth_certified"].first().map(_truthy)
+            per_scenario = g.groupby(scen)["truth_certified"].first().map(truthy)
             certified = ("yes" if per_scenario.all() else "no" if not per_scenario.any()
                          else f"{int(per_scenario.sum())} of {len(per_scenario)} scenarios")
         else:
@@ -134,7 +125,7 @@ def truth_summary(frame: pd.DataFrame) -> str:
     scen = frame["scenario"].astype(str) if "scenario" in frame else pd.Series("", index=frame.index)
     has = numeric_column(frame, "err_truth").notna()
     scenarios = sorted(set(scen[has]))
-    certified = (frame[has].groupby(scen[has])["truth_certified"].first().map(_truthy)
+    certified = (frame[has].groupby(scen[has])["truth_certified"].first().map(truthy)
                  if "truth_certified" in frame else pd.Series(False, index=scenarios))
     est = numeric_column(frame[has], "truth_err_est").max()
     horizon = numeric_column(frame[has], "truth_horizon_s").groupby(scen[has]).first()
