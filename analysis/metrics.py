@@ -14,8 +14,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from analysis.schema import COLUMNS
 from scenarios.meshes import TetMesh, bbox_diagonal
-from scenarios.model import Contact, Material, Plane
+from scenarios.model import GRAVITY, Contact, Material, Plane
 from solvers.baselines import project
 from solvers.physics.contact import lagged_pressure
 from solvers.physics.friction import creep_speed
@@ -25,17 +26,8 @@ from solvers.trajectory import Trajectory
 
 ArrayLike3 = Sequence[float] | np.ndarray
 
-#: Default gravity [m/s^2] (y is up).
-GRAVITY: tuple[float, float, float] = (0.0, -9.81, 0.0)
-
-#: Keys of `compare`'s result, in the order the results table shows them.
-METRIC_KEYS: tuple[str, ...] = (
-    "frames_compared",
-    "pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "proj_rmse_rel",
-    "stick", "stick_ref", "stick_agree", "end_speed", "end_speed_ref",
-    "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "inverted_tets_final",
-    "volume_ratio_final", "energy_ratio_max", "creep_speed_law", "creep_ratio",
-)
+#: Keys of `compare`'s result, in the order the results table shows them: the schema's columns computed here.
+METRIC_KEYS: tuple[str, ...] = tuple(c.name for c in COLUMNS.values() if c.source.startswith(f"{__name__}."))
 
 
 def _unit_plane(normal: ArrayLike3, offset: float = 0.0) -> tuple[np.ndarray, float]:

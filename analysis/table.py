@@ -1,10 +1,11 @@
 """The results table: one row per scenario x solver variant, written as `results.csv`.
 
-Column order (docs/design.md, "Metrics"):
-1. identity: `IDENTITY_COLUMNS` present in the rows, then solver parameters (keys starting with `param_`, in the
-   order first seen);
-2. metrics: `METRIC_COLUMNS` present in the rows, then any other key (in the order first seen);
-3. provenance: `PROVENANCE_COLUMNS` present in the rows, then any other `*_version` key.
+Column order (docs/design.md, "Metrics"), from the schema (`analysis.schema.COLUMNS`, read when the table is written):
+1. identity: the placed identity columns present in the rows, then solver parameters (keys starting with `param_`,
+   in the order first seen);
+2. metrics: the other placed columns present in the rows, then any other key (the schema's unplaced columns among
+   them) in the order first seen;
+3. provenance: the placed provenance columns present in the rows, then any other `*_version` key.
 """
 
 from __future__ import annotations
@@ -21,66 +22,31 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.metrics import METRIC_KEYS
+from analysis.schema import VERSIONED_PACKAGES, names
 from scenarios.atomic import write_text_atomic
 
-IDENTITY_COLUMNS: tuple[str, ...] = ("suite", "scenario", "split", "mesh", "train_mesh", "solver", "variant")
+#: The identity columns (`analysis.schema`): a row's key across result sets.
+IDENTITY_COLUMNS: tuple[str, ...] = names("identity")
 PARAM_PREFIX = "param_"
-
-#: Run outcome: `status` is `ok` or `failed`; `failure` is the reason (exception message) of a failed run.
-STATUS_COLUMNS: tuple[str, ...] = ("status", "failure")
-#: Timing [s or ms], measured by the harness; `jit_s` is warm-up, kept apart from step times.
-TIMING_COLUMNS: tuple[str, ...] = ("setup_s", "train_s", "jit_s", "step_ms_median", "step_ms_p95", "speedup")
-#: Ground truth and frontier (analysis/truth.py, bench/runner.py `collect_rows`): the run's integrator, its error
-#: against the scenario's truth, its cost, its speedup at equal accuracy (or why none), then the truth's own figures
-#: (the same on every row of a scenario) and, on ladder rows, the ladder's integrator. A variant's error against the
-#: truth has three parts: err_time (the full-space run it is compared with, against the truth), pos_rmse_rel (the
-#: reduction, against that run) and err_projection (the truth projected onto its subspace, where it has one).
-#: truth_horizon_s: how long the truth meets the ladder's tolerance frame by frame; err_truth_horizon: err_truth
-#: over the frames up to then.
-TRUTH_COLUMNS: tuple[str, ...] = (
-    "integrator", "err_truth", "err_truth_horizon", "err_time", "err_projection", "wall_s_per_sim_s",
-    "speedup_equal_accuracy", "frontier_note", "truth_certified", "truth_horizon_s",
-    "truth_err_est", "truth_order", "truth_dt", "truth_depth", "truth_integrator", "ladder")
-METRIC_COLUMNS: tuple[str, ...] = STATUS_COLUMNS + METRIC_KEYS + TIMING_COLUMNS + TRUTH_COLUMNS
-
-#: Distribution name -> column of its version in `provenance()`.
-VERSIONED_PACKAGES: dict[str, str] = {
-    "frictionbench": "frictionbench_version",
-    "numpy": "numpy_version",
-    "scipy": "scipy_version",
-    "torch": "torch_version",
-    "warp-lang": "warp_version",
-    "taichi": "taichi_version",
-    "mkl": "mkl_version",  # MKL PARDISO, the full-space solver's default linear solver (`linear_solver` per row)
-}
-PROVENANCE_COLUMNS: tuple[str, ...] = (
-    "commit", "commit_dirty", "timestamp_utc", "device", "cpu_name", "gpu_name", "platform", "python_version",
-    *VERSIONED_PACKAGES.values(),
-)
-
-
-def truthy(value: object) -> bool:
-    """A boolean cell of the results as read from results.csv or built in memory: True, 'true'/'True', 'yes', 1 and
-    '1'/'1.0' are true; missing (None, NaN) is false."""
-    if value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value))):
-        return False
-    if isinstance(value, str):
-        return value.strip().lower() in ("true", "yes", "1", "1.0")
-    return bool(value)
+#: Timing [s, ms or ratios of them], measured on this machine: never compared for behaviour.
+TIMING_COLUMNS: tuple[str, ...] = names("timing")
+#: Provenance written once per table (`provenance()`), the table's last columns.
+PROVENANCE_COLUMNS: tuple[str, ...] = names("provenance", placed=True)
 
 
 def column_order(keys: Iterable[str]) -> list[str]:
     """The keys of the results rows in table order: identity, parameters, metrics, provenance (see module doc)."""
     keys = list(dict.fromkeys(keys))
-    known = set(IDENTITY_COLUMNS) | set(METRIC_COLUMNS) | set(PROVENANCE_COLUMNS)
+    identity, provenance_columns = names("identity", placed=True), names("provenance", placed=True)
+    metric_columns = [c for c in names(placed=True) if c not in identity and c not in provenance_columns]
+    known = set(identity) | set(metric_columns) | set(provenance_columns)
     params = [k for k in keys if k.startswith(PARAM_PREFIX)]
     extra_provenance = [k for k in keys if k.endswith("_version") and k not in known]
     other = [k for k in keys if k not in known and k not in params and k not in extra_provenance]
     present = set(keys)
-    return ([k for k in IDENTITY_COLUMNS if k in present] + params
-            + [k for k in METRIC_COLUMNS if k in present] + other
-            + [k for k in PROVENANCE_COLUMNS if k in present] + extra_provenance)
+    return ([k for k in identity if k in present] + params
+            + [k for k in metric_columns if k in present] + other
+            + [k for k in provenance_columns if k in present] + extra_provenance)
 
 
 def _git(*args: str) -> str | None:

@@ -22,6 +22,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from analysis.schema import number
+
 #: Formal order of accuracy of each time integrator (the upper clamp of the observed order).
 FORMAL_ORDER: dict[str, int] = {"backward-euler": 1, "bdf2": 2}
 #: Lower clamp of the observed order: a ladder whose differences shrink more slowly than 2^-0.25 per halving (or
@@ -171,15 +173,6 @@ def speedup_equal_accuracy(front: Sequence[tuple[float, float]], err: float, cos
     return (None if full is None or cost <= 0.0 else full / cost), note
 
 
-def _number(value: object) -> float | None:
-    """A finite float, or None for a missing, empty or non-numeric value."""
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
-
-
 def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
     """Rows with `speedup_equal_accuracy` and `frontier_note` on every row that has err_truth and
     wall_s_per_sim_s: against the Pareto front of its scenario's ladder rows (rows with a non-empty `ladder`,
@@ -189,13 +182,13 @@ def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
     fronts: dict[object, list[tuple[float, float]]] = {}
     for r in rows:
         if r.get("ladder") and r.get("status") == "ok":
-            e, c = _number(r.get("err_truth")), _number(r.get("wall_s_per_sim_s"))
+            e, c = number(r.get("err_truth"), finite=True), number(r.get("wall_s_per_sim_s"), finite=True)
             if e is not None and c is not None:
                 fronts.setdefault(r["scenario"], []).append((e, c))
     fronts = {k: pareto_front(v) for k, v in fronts.items()}
     out = []
     for r in rows:
-        e, c = _number(r.get("err_truth")), _number(r.get("wall_s_per_sim_s"))
+        e, c = number(r.get("err_truth"), finite=True), number(r.get("wall_s_per_sim_s"), finite=True)
         if r.get("scenario") in fronts and e is not None and c is not None and r.get("status") == "ok":
             speedup, note = speedup_equal_accuracy(fronts[r["scenario"]], e, c) if e > 0.0 else (None, "the truth")
             r = dict(r) | {"speedup_equal_accuracy": speedup, "frontier_note": note}

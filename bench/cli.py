@@ -128,11 +128,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     with_baseline = args.baseline is not None and not args.no_report
     if with_baseline:  # a bad baseline or tolerance is refused before the run, not after it
-        from bench.compare import DEFAULT_RULES, CompareError, read_results, with_tolerances
+        from bench.compare import CompareError, default_rules, read_results, with_tolerances
 
         try:
             read_results(args.baseline)
-            with_tolerances(DEFAULT_RULES, args.tol)
+            with_tolerances(default_rules(), args.tol)
         except CompareError as err:
             print(f"error: {err}", file=sys.stderr)
             return 2

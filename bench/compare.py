@@ -3,7 +3,7 @@ metric, the values, their change, the tolerance and the gates' thresholds, and a
 
 As pytest-benchmark's `compare --fail` and asv's `continuous` do, a **regression** is a metric that moved in its
 bad direction by more than its tolerance. Each metric has a `Rule`: its kind, which direction is better, and
-its tolerance:
+its tolerance, by default those the results schema declares (`default_rules`, from `analysis.schema`):
 
 - accuracy and stability figures (lower is better, a flag that should hold, a ratio that should stay at 1):
   regression when the change in the bad direction exceeds max(rel x |baseline|, abs);
@@ -30,12 +30,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.schema import COLUMNS, DIRECTIONS, JUDGED_KINDS, flag, is_missing, number
+
 #: A results row's identity across result sets.
 KEY: tuple[str, ...] = ("scenario", "solver", "variant")
-KINDS: tuple[str, ...] = ("accuracy", "stability", "timing")
-#: lower / higher: the smaller / larger value is better; true: a flag that should hold (status `ok` counts as
-#: true); one: the closer to 1 the better; none: judged by the gates only.
-DIRECTIONS: tuple[str, ...] = ("lower", "higher", "true", "one", "none")
+KINDS: tuple[str, ...] = JUDGED_KINDS
 VERDICTS: tuple[str, ...] = ("regression", "improved", "new", "ok")
 
 
@@ -68,32 +67,10 @@ class Rule:
         return ",".join(parts) or "0"
 
 
-ACCURACY_TOL = {"rel": 0.10, "abs": 1e-4}  # 10% of the baseline, and never less than 1e-4 (of L for *_rel)
-TIMING_FACTOR = 1.5
+def default_rules() -> tuple[Rule, ...]:
+    """The rule of every judged column of the schema (`analysis.schema.Column.judged`), in table order."""
+    return tuple(Rule(c.name, c.kind, c.better, c.rel, c.abs, c.factor) for c in COLUMNS.values() if c.judged)
 
-DEFAULT_RULES: tuple[Rule, ...] = (
-    *(Rule(m, "accuracy", "lower", **ACCURACY_TOL)
-      for m in ("pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel", "proj_rmse_rel",
-                "remesh_ratio", "ref_dt_change", "err_truth", "truth_err_est")),
-    Rule("truth_certified", "accuracy", "true"),
-    Rule("status", "stability", "true"),
-    Rule("finite", "stability", "true"),
-    Rule("stick_agree", "stability", "true"),
-    Rule("max_penetration_rel", "stability", "lower", **ACCURACY_TOL),
-    Rule("inverted_tets", "stability", "lower"),
-    Rule("inverted_tets_final", "stability", "lower"),
-    Rule("volume_ratio_final", "stability", "one", abs=0.002),
-    Rule("energy_ratio_max", "stability", "lower", abs=0.002),
-    Rule("creep_ratio", "stability", "lower", rel=0.10, abs=0.01),
-    Rule("not_converged", "stability", "lower"),
-    Rule("line_search_stalls", "stability", "lower"),
-    Rule("step_retries", "stability", "lower"),
-    Rule("step_ms_median", "timing", "lower", factor=TIMING_FACTOR),
-    Rule("step_ms_p95", "timing", "lower", factor=TIMING_FACTOR),
-    Rule("speedup", "timing", "higher", factor=TIMING_FACTOR),
-    Rule("wall_s_per_sim_s", "timing", "lower", factor=TIMING_FACTOR),
-    Rule("speedup_equal_accuracy", "timing", "higher", factor=TIMING_FACTOR),
-)
 
 _TOL_RE = re.compile(r"(?:(?P<better>[a-z]+):)?(?:x(?P<factor>[^,%]+)|(?P<rel>[^,%]+)%(?:,(?P<abs>[^,%]+))?"
                      r"|(?P<abs_only>[^,%x]+))")
@@ -185,35 +162,6 @@ def _keyed(frame: pd.DataFrame, name: str) -> dict[tuple, dict]:
     return keyed
 
 
-def _flag(value: object) -> bool | None:
-    """A flag cell as a bool (`ok`, `true`, `yes` are true; `failed`, `false`, `no` false); None when missing."""
-    if is_missing(value):
-        return None
-    if isinstance(value, str):
-        text = value.strip().lower()
-        if text in ("ok", "true", "yes", "1", "1.0"):
-            return True
-        if text in ("failed", "false", "no", "0", "0.0"):
-            return False
-        return None
-    return bool(value)
-
-
-def is_missing(value: object) -> bool:
-    """Whether a results cell holds no value (None, NaN, pd.NA, an empty CSV cell read back)."""
-    return value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value)))
-
-
-def _number(value: object) -> float | None:
-    """A numeric cell as a float; None when missing or not a number."""
-    if is_missing(value):
-        return None
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return None
-
-
 def _gate_index(frame: pd.DataFrame, gates: Sequence[dict]) -> dict[tuple[str, str, str], list]:
     """(scenario, label, metric) -> the verdicts of every gate on that row and metric."""
     from bench.gates import check
@@ -229,11 +177,11 @@ def _gate_index(frame: pd.DataFrame, gates: Sequence[dict]) -> dict[tuple[str, s
 def _judge(rule: Rule, base: object, new: object) -> tuple[str, str]:
     """(verdict, reason) of one metric by its rule alone."""
     if rule.better == "true":
-        b, n = _flag(base), _flag(new)
+        b, n = flag(base), flag(new)
         if b is None or n is None or b == n:
             return ("ok", "") if n is not None or b is None else ("regression", "no value in the new set")
         return ("improved", "") if n else ("regression", "no longer holds")
-    b, n = _number(base), _number(new)
+    b, n = number(base), number(new)
     if n is None:
         return ("regression", "no value in the new set") if b is not None else ("ok", "")
     if b is None or rule.better == "none":
@@ -252,12 +200,14 @@ def _judge(rule: Rule, base: object, new: object) -> tuple[str, str]:
     return ("improved", "") if -bad > allowed else ("ok", "")
 
 
-def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule] = DEFAULT_RULES,
+def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule] | None = None,
                     gates: Sequence[dict] = ()) -> pd.DataFrame:
     """One row per (scenario, solver, variant, metric) of either set: columns verdict (VERDICTS), scenario,
     variant (`solver/variant`), metric, kind, base, new, delta (new - base, numbers only), ratio (new / base),
     tolerance, gate (the thresholds of the gates on that row and metric, `(advisory)` marked), reason; sorted
-    regressions first. Metrics judged only by a gate (no rule) are compared for gate crossings alone."""
+    regressions first. Metrics judged only by a gate (no rule) are compared for gate crossings alone. `rules`:
+    default `default_rules()`."""
+    rules = default_rules() if rules is None else rules
     b, n = _keyed(base, "baseline"), _keyed(new, "new set")
     gated_b, gated_n = _gate_index(base, gates), _gate_index(new, gates)
     by_metric = {r.metric: r for r in rules}
@@ -274,7 +224,7 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
             rows.append(_row("new", scenario, label, "(row)", "", reason="not in the baseline"))
             continue
         rb, rn = b[key], n[key]
-        if _flag(rb.get("status")) is not False and _flag(rn.get("status")) is False:
+        if flag(rb.get("status")) is not False and flag(rn.get("status")) is False:
             failure = "" if is_missing(rn.get("failure")) else rn["failure"]
             rows.append(_row("regression", scenario, label, "status", "stability", rb.get("status"),
                              rn.get("status"), reason=f"run failed: {failure}"))
@@ -295,7 +245,7 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
                 reason = "; ".join(filter(None, [reason, *(f"gate {v.limit} undecidable (uncertified truth)"
                                                            for v in undecided)]))
             gate = "; ".join(dict.fromkeys(f"{v.limit}{' (advisory)' if v.advisory else ''}" for v in gate_n))
-            nb, nn = _number(vb), _number(vn)
+            nb, nn = number(vb), number(vn)
             rows.append(_row(verdict, scenario, label, metric, rule.kind, vb, vn,
                              delta=nn - nb if nb is not None and nn is not None and rule.better != "true" else None,
                              ratio=nn / nb if nb and nn is not None and rule.better != "true" else None,
@@ -321,7 +271,7 @@ def compare_folders(baseline: str | Path, new: str | Path, tolerances: Sequence[
     by `tolerances` (`with_tolerances`) and the gates of `gates_file` (None: the shipped gates)."""
     from bench.gates import load_gates
 
-    rules = with_tolerances(DEFAULT_RULES, tolerances)
+    rules = with_tolerances(default_rules(), tolerances)
     try:
         gates = load_gates(gates_file)
     except (OSError, ValueError) as err:  # tomllib.TOMLDecodeError is a ValueError
@@ -355,5 +305,5 @@ def _cell(value: object) -> str:
     """A value cell: numbers to 4 significant digits, missing as `-`."""
     if is_missing(value):
         return "-"
-    number = _number(value)
-    return f"{number:.4g}" if number is not None and not isinstance(value, (bool, np.bool_, str)) else str(value)
+    x = number(value)
+    return f"{x:.4g}" if x is not None and not isinstance(value, (bool, np.bool_, str)) else str(value)

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.table import truthy, variant_labels
+from analysis.schema import flag, is_missing, number, truthy
+from analysis.table import variant_labels
 from analysis.truth import AT_MOST, MORE_ACCURATE, decidable
 
 #: Metrics that are errors against the ground truth: their `max` gates can be undecidable.
@@ -75,11 +76,15 @@ def load_gates(path: str | Path | None = None) -> list[dict]:
 
 
 def _passes(value: object, gate: dict) -> bool:
-    if value is None or (isinstance(value, float) and pd.isna(value)):
+    """Whether a cell meets a gate: `equals` a flag (`analysis.schema.flag`), or within `min` and `max`; a missing
+    value never does."""
+    if is_missing(value):
         return False
     if "equals" in gate:
-        return str(value).lower() == str(gate["equals"]).lower()
-    v = float(value)
+        return flag(value) == flag(gate["equals"])
+    v = number(value)
+    if v is None:
+        raise ValueError(f"gate on {gate['metric']}: {value!r} is not a number")
     return ("max" not in gate or v <= gate["max"]) and ("min" not in gate or v >= gate["min"])
 
 
@@ -89,15 +94,14 @@ def _undecidable(row: pd.Series, gate: dict) -> bool:
     of a row more accurate than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on
     it met only by an upper bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
     if gate["metric"] == "speedup_equal_accuracy":
-        if pd.isna(row.get("speedup_equal_accuracy")):
+        if is_missing(row.get("speedup_equal_accuracy")):
             return row.get("frontier_note") == MORE_ACCURATE
         return row.get("frontier_note") == AT_MOST and "min" in gate and _passes(row["speedup_equal_accuracy"], gate)
     if "max" not in gate or not (gate["metric"] in TRUTH_METRICS or gate.get("against_truth")):
         return False
     if "truth_err_est" not in row and "truth_certified" not in row:
         return False  # no truth for these results: judged as before
-    est = pd.to_numeric(pd.Series([row.get("truth_err_est")]), errors="coerce").iloc[0]
-    return not decidable(float(gate["max"]), truthy(row.get("truth_certified")), None if pd.isna(est) else float(est))
+    return not decidable(float(gate["max"]), truthy(row.get("truth_certified")), number(row.get("truth_err_est")))
 
 
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:

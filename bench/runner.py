@@ -2,8 +2,9 @@
 
 Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
 shape on the suite's training split (cached), (3) every variant on every member (and on the other mesh of the
-shape, for remeshing), (4) metrics against the references -> results.csv and report.html. Each run is a folder of
-the `RunStore` keyed by a hash of its scenario and settings: an interrupted run resumes with what is missing.
+shape, for remeshing), (4) metrics against the references, the rows built by `analysis.rows.collect_rows` ->
+results.csv and report.html. Each run is a folder of the `RunStore` keyed by a hash of its scenario and settings:
+an interrupted run resumes with what is missing.
 Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster):
 a task carries what its worker needs and returns what it produced (`bench.payload`); only the client writes here.
 """
@@ -13,18 +14,16 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from analysis.derived import with_ref_dt_change, with_remesh_ratio
-from analysis.metrics import compare, error_over_time, pos_rmse_rel, proj_rmse_rel
+from analysis.metrics import error_over_time, pos_rmse_rel
+from analysis.rows import collect_rows
 from analysis.table import write_results_csv
-from analysis.transfer import transfer_to_mesh
-from analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, ladder_continues, wall_s_per_sim_s,
-                            with_frontier)
+from analysis.truth import ladder_continues
 from bench.executors import make_executor
 from bench.payload import Artefact, RunResult, artefact_folders, localised
 from bench.store import RunStore, run_key
@@ -197,7 +196,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
             if isinstance(task, Task):
                 tasks.append(task)
     run_tasks(tasks, store, device, jobs, executor, "solver variants")
-    rows = collect_rows(suite, refs, resolved, variants, store, ladders, spec)
+    rows = collect_rows(suite, refs, StoreRuns(store, resolved, variants), ladders, spec)
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
@@ -326,20 +325,6 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
     return ladders
 
 
-def truth_columns(ladders: dict[str, Ladder], spec_tol: float) -> tuple[dict, TruthEstimate | None, Task | None]:
-    """(the truth columns of every row of a scenario, its estimate, the truth's task) from its ladders (the
-    truth's first); no truth where its ladder's first run failed."""
-    truth = next(iter(ladders.values()))
-    if not truth.tasks:
-        return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
-    est = assess_ladder(truth.differences, spec_tol, truth.integrator)
-    finest = truth.tasks[-1]
-    horizon = certified_horizon(*truth.frame_differences, spec_tol) if truth.frame_differences else None
-    return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
-             "truth_order": est.order, "truth_dt": finest.scenario.time.dt, "truth_depth": est.level,
-             "truth_integrator": truth.integrator, "truth_horizon_s": horizon}, est, finest)
-
-
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:
     """The task of a variant on a member, or the reason it has none (its overrides make an invalid scenario,
     e.g. the barrier law on a body that starts touching the plane)."""
@@ -364,112 +349,27 @@ def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) 
     return out
 
 
-def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Variant], store: RunStore,
-                 ladders: dict[str, dict[str, Ladder]] | None = None, truth: TruthSpec | None = None) -> list[dict]:
-    """One results row per (member, variant) plus one per reference and one per ladder run: identity, metrics,
-    timings; with ladders, every row also gets err_truth (against its scenario's truth; remeshed runs carried onto
-    the truth's mesh first) and err_truth_horizon (the same over the frames up to the truth's certified horizon), the
-    truth's columns (`truth_columns`) and the frontier's (`with_frontier`), and every variant row its error's parts:
-    err_time (the full-space run it is compared with, against the truth: the time step's share), pos_rmse_rel
-    (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
-    basis's share)."""
-    rows = []
-    for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
-        sc = m.scenario
-        ref_task = refs[sc.name]
-        ref, ref_stats = store.load(ref_task.key)
-        base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
-                "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
-        truth_traj = truth_early = None
-        if ladders and sc.name in ladders:
-            columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0)
-            base |= columns
-            truth_traj = store.load(truth_task.key)[0] if truth_task else None
-            if truth_traj is not None and columns.get("truth_horizon_s") is not None:
-                truth_early = truth_traj.until(columns["truth_horizon_s"])
+@dataclass(frozen=True)
+class StoreRuns:
+    """The runs of a matrix as row building reads them (`analysis.rows.Runs`): the store, and the variants
+    resolved for the suite (`bench.training.prepare_variants`)."""
 
-        def err_truth(traj, other_mesh: bool = False, truth_traj=truth_traj, truth_early=truth_early) -> dict:
-            if truth_traj is None or traj is None:
-                return {}
-            here = transfer_to_mesh(traj, truth_traj) if other_mesh else traj
-            return ({"err_truth": pos_rmse_rel(truth_traj, here)}
-                    | ({"err_truth_horizon": pos_rmse_rel(truth_early, here)} if truth_early is not None else {}))
+    store: RunStore
+    resolved: Sequence
+    variants: Sequence[Variant]
 
-        def error_parts(traj, run_ref, other_mesh: bool, truth_traj=truth_traj) -> dict:
-            """err_time: the full-space run this row is compared with, against the truth; err_projection: the
-            truth (carried onto the row's mesh) projected onto the row's subspace, where it has one."""
-            if truth_traj is None or run_ref is None:
-                return {}
-            parts = {"err_time": err_truth(run_ref, other_mesh)["err_truth"]}
-            if traj is not None and traj.basis is not None:
-                truth_here = transfer_to_mesh(truth_traj, traj) if other_mesh else truth_traj
-                parts["err_projection"] = proj_rmse_rel(truth_here, traj.basis)
-            return parts
+    def load(self, key: str) -> tuple[Trajectory | None, dict]:
+        """A stored run: (trajectory or None, stats)."""
+        return self.store.load(key)
 
-        rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,
-                            "integrator": sc.time.integrator}
-                    | _timing(ref_stats, ref_stats, sc.time.dt) | _metrics(ref, ref, sc, ref_stats)
-                    | (err_truth(ref) if not ref_stats.get("failed") else {}))
-        for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
-            for k, task in enumerate(ladder.tasks):
-                traj, stats = store.load(task.key)
-                rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
-                                    "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
-                            | _timing(stats, ref_stats, task.scenario.time.dt) | _metrics(ref, traj, sc, stats)
-                            | err_truth(traj))
-        for v, params in member_variants(resolved, variants, m):
-            label = v.label or v.solver
-            if params is None:
-                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed",
-                                    "failure": "no reduced model for this mesh shape"})
-                continue
-            task = variant_task(v, m, params)
-            if not isinstance(task, Task):
-                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": task})
-                continue
-            mesh = task.mesh
-            traj, stats = store.load(task.key)
-            # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed),
-            # or against the reference itself after carrying the trajectory onto its mesh (`transfer`)
-            if mesh is None or v.transfer:
-                v_ref, v_ref_stats = ref, ref_stats
-                if mesh is not None and traj is not None:
-                    traj = transfer_to_mesh(traj, ref)
-            else:
-                v_ref, v_ref_stats = store.load(Task(sc, ref_task.solver, {}, mesh).key)
-            row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
-                          "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
-                          "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
-                          "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
-            metrics = _metrics(v_ref, traj, task.scenario, stats)
-            other_mesh = mesh is not None and not v.transfer
-            truth_err = (err_truth(traj, other_mesh) | error_parts(traj, v_ref, other_mesh)
-                         if metrics["status"] == "ok" else {})
-            rows.append(row | _timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
-    return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
+    def member_variants(self, member: SuiteMember) -> list[tuple[Variant, dict | None]]:
+        """The (variant, params) that apply to a member (`member_variants`)."""
+        return member_variants(self.resolved, self.variants, member)
 
+    def task(self, variant: Variant, member: SuiteMember, params: dict) -> Task | str:
+        """A variant's run on a member, or why it has none (`variant_task`)."""
+        return variant_task(variant, member, params)
 
-def _timing(stats: dict, ref_stats: dict, dt: float) -> dict:
-    """Timing and solver-health columns (Newton failures, line-search stalls, step retries, the linear solver that
-    ran: `linear_solver` of a full-space run's stats); speedup = the reference's step time / this step time, both
-    measured in this run; wall_s_per_sim_s = the steps' wall time per simulated second at time step dt [s]
-    (warm-up, setup and training apart)."""
-    keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
-            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries", "linear_solver")
-    row = {k: stats.get(k) for k in keys}
-    row["wall_s_per_sim_s"] = wall_s_per_sim_s([s["wall_s"] for s in stats.get("per_step", [])], dt)
-    if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
-        row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
-    return row
-
-
-def _metrics(ref, traj, sc: Scenario, stats: dict) -> dict:
-    """Metric columns of one row (a reduced run's trajectory carries its basis, for the projection error); a failed
-    run (diverged, or no trajectory) gets `status = failed`, its reason and no accuracy metrics (a truncated
-    trajectory would look accurate)."""
-    if traj is None or ref is None or stats.get("failed"):
-        return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
-    contact = replace(sc.contact, stiffness=stats["contact_stiffness"])  # the stiffness the run resolved
-    return {"status": "ok", "failure": ""} | compare(ref, traj, plane=sc.plane, material=sc.material,
-                                                     gravity=sc.gravity, basis=traj.basis,
-                                                     contact=contact if sc.effects.friction else None)
+    def key(self, scenario: Scenario, solver: str, mesh: MeshSpec | None) -> str:
+        """The store key of `solver`'s run of a scenario with its default parameters on a mesh."""
+        return Task(scenario, solver, {}, mesh).key

@@ -29,15 +29,15 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.table import IDENTITY_COLUMNS, PROVENANCE_COLUMNS, TIMING_COLUMNS
-from bench.compare import is_missing
+from analysis.schema import is_missing, names
+from analysis.table import IDENTITY_COLUMNS
 from bench.gates import check, load_gates
 from bench.store import load_run_info
 from scenarios.suites import load_suite
 
-#: Columns never compared: measured times (and what is derived from them) and provenance.
-IGNORED_COLUMNS: frozenset[str] = (frozenset(TIMING_COLUMNS) | frozenset(PROVENANCE_COLUMNS)
-                                   | {"warmup_s", "run", "wall_s_per_sim_s", "speedup_equal_accuracy", "frontier_note"})
+#: Columns never compared: measured times (and what is derived from them) and provenance (`analysis.schema` kinds
+#: timing and provenance).
+IGNORED_COLUMNS: frozenset[str] = frozenset(names("timing", "provenance"))
 EXACT_RTOL = 1e-9
 REDUCED_RTOL = 1e-6
 #: Absolute floor of the comparison: values within it of each other are equal whatever their ratio.

@@ -14,14 +14,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from analysis.table import truthy, variant_labels
+from analysis.schema import is_missing, stability_metrics, truthy
+from analysis.table import variant_labels
 from reports.plots import accuracy_columns, ladder_mask, numeric_column
-
-#: Metrics of the gates and advisory checks that judge stability (a run's stability fails when one of them does).
-STABILITY_METRICS = frozenset({"status", "finite", "max_penetration_rel", "inverted_tets", "inverted_tets_final",
-                               "inverted_tets_frame_max", "volume_ratio_final", "energy_ratio_max", "creep_ratio",
-                               "not_converged"})
-
 
 def verdict_frame(gates: Sequence[object]) -> pd.DataFrame:
     """Gate verdicts (mappings, dataclasses or plain objects) as a table with a `status` column: `passed`,
@@ -47,7 +42,7 @@ def verdict_frame(gates: Sequence[object]) -> pd.DataFrame:
 def _runs_ok(frame: pd.DataFrame) -> pd.Series:
     """Runs that finished (status ok or missing), with finite positions and no unconverged step."""
     status = frame["status"].fillna("ok").astype(str) if "status" in frame else pd.Series("ok", index=frame.index)
-    finite = frame["finite"].map(lambda v: True if v is None or pd.isna(v) else truthy(v)) if "finite" in frame \
+    finite = frame["finite"].map(lambda v: is_missing(v) or truthy(v)) if "finite" in frame \
         else pd.Series(True, index=frame.index)
     unconverged = numeric_column(frame, "not_converged").fillna(0.0)
     return (status == "ok") & finite.astype(bool) & (unconverged == 0)
@@ -89,7 +84,8 @@ def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.Data
     verdicts = verdict_frame(gates)
     unstable: set[tuple[str, str]] = set()
     if not verdicts.empty and {"metric", "scenario", "variant"} <= set(verdicts):
-        bad = verdicts[verdicts["metric"].isin(STABILITY_METRICS) & (verdicts["status"] == "failed")]
+        # a gate or advisory check on a stability metric (`analysis.schema.stability_metrics`) failed
+        bad = verdicts[verdicts["metric"].isin(stability_metrics()) & (verdicts["status"] == "failed")]
         unstable = set(zip(bad["scenario"].astype(str), bad["variant"].astype(str)))
     rows = []
     for family, label in best.items():

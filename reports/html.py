@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.derived import remeshing_summary
-from analysis.table import PROVENANCE_COLUMNS, results_frame, variant_labels
+from analysis.schema import COLUMNS, flag, is_missing, names, stability_metrics, truthy
+from analysis.table import results_frame, variant_labels
 from reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
 from reports.interactive import page_scripts, plot_div, plotly_version
 from reports.plots import (error_over_time_figure, error_parts_figure, frontier_figure, ladder_figure,
@@ -71,14 +72,9 @@ class ScenarioRuns:
     truth_label: str = "truth"
 
 
-def _missing(value: object) -> bool:
-    """None, NaN, NaT or pd.NA."""
-    return value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value)))
-
-
 def _cell(value: object) -> str:
     """A table cell's text: floats to 3 significant digits, booleans as yes/no, missing values as an en dash."""
-    if _missing(value):
+    if is_missing(value):
         return "&ndash;"
     if isinstance(value, (bool, np.bool_)):
         return "yes" if value else "no"
@@ -88,12 +84,11 @@ def _cell(value: object) -> str:
 
 
 def _verdict_class(value: object) -> str:
-    """CSS class of a verdict cell: pass for True / 'ok' / 'pass', fail for False / anything else, '' if missing."""
-    if _missing(value):
+    """CSS class of a verdict cell: pass for a true flag (True, 'ok', 'pass', `analysis.schema.flag`), fail for
+    anything else, '' if missing."""
+    if is_missing(value):
         return ""
-    if isinstance(value, (bool, np.bool_)):
-        return "pass" if value else "fail"
-    return "pass" if str(value).lower() in ("ok", "pass", "passed", "true") else "fail"
+    return "pass" if flag(value) else "fail"
 
 
 def _table(frame: pd.DataFrame, verdicts: Sequence[str] = ()) -> str:
@@ -142,7 +137,7 @@ def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
         failed = binding[binding["status"] == "failed"]
         if not failed.empty:
             items = [html.escape(", ".join(str(r[k]) for k in ("gate", "scenario", "variant", "metric")
-                                           if k in r and not _missing(r[k]))
+                                           if k in r and not is_missing(r[k]))
                                  + (f": {_cell_text(r['value'])} (limit {r['limit']})"
                                     if "value" in r and "limit" in r else ""))
                      for _, r in failed.head(MAX_LISTED).iterrows()]
@@ -179,14 +174,10 @@ def _verdicts(gates: Sequence[object]) -> str:
 
 
 def _results(frame: pd.DataFrame) -> str:
-    """The key columns of every results row."""
-    summary = _columns(frame, ["suite", "scenario", "split", "mesh", "solver", "variant", "ladder", "integrator",
-                               "dt", "status", "failure", "err_truth", "err_time", "err_projection",
-                               "pos_rmse_rel", "proj_rmse_rel",
-                               "com_err_rel", "final_err_rel", "slide_err_rel", "stick_agree", "wall_s_per_sim_s",
-                               "step_ms_median", "speedup", "speedup_equal_accuracy", "frontier_note",
-                               "truth_certified", "truth_err_est", "truth_horizon_s", "err_truth_horizon"])
-    return _table(summary, verdicts=["status", "stick_agree"])
+    """The key columns of every results row: the schema's summary columns (`analysis.schema.Column.summary`), its
+    flags that should hold coloured."""
+    summary = _columns(frame, [c.name for c in COLUMNS.values() if c.summary])
+    return _table(summary, verdicts=[c.name for c in COLUMNS.values() if c.summary and c.better == "true"])
 
 
 def _frontier(frame: pd.DataFrame) -> str:
@@ -283,7 +274,7 @@ def _stick_slip(frame: pd.DataFrame) -> str:
     if "stick_ref" not in frame or frame["stick_ref"].isna().all():
         return _note("No stick/slip verdicts (scenes without a plane).")
     rows = frame[frame["stick_ref"].notna()]
-    agree = rows["stick_agree"].astype(bool)
+    agree = rows["stick_agree"].map(truthy)
     table = _columns(rows, ["scenario", "mesh", "solver", "variant", "stick_ref", "stick", "stick_agree",
                             "end_speed_ref", "end_speed"])
     return (_note(f"{int(agree.sum())} of {len(rows)} runs agree with the reference on whether the body ends at "
@@ -306,10 +297,8 @@ def _remeshing(frame: pd.DataFrame) -> str:
 def _stability(frame: pd.DataFrame, gates: Sequence[object]) -> str:
     """Which cases pass their gates per solver and law, the contact laws side by side, then every run's
     stability metrics, solver health and failure reason."""
-    table = _columns(frame, ["scenario", "mesh", "solver", "variant", "law", "status", "finite",
-                             "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "inverted_tets_final",
-                             "volume_ratio_final", "energy_ratio_max", "creep_ratio", "not_converged",
-                             "line_search_stalls", "step_retries", "failure"])
+    stability = stability_metrics()
+    table = _columns(frame, ["scenario", "mesh", "solver", "variant", "law", *stability])
     return (_stability_matrix(gates) + _contact_laws(frame)
             + _note("finite: every stored value finite; max_penetration_rel: deepest surface point below the plane "
                     "/ L; inverted_tets: tets with det F <= 0 in some frame (most in one frame, at the end); "
@@ -318,7 +307,7 @@ def _stability(frame: pd.DataFrame, gates: Sequence[object]) -> str:
                     "plane at the end / the friction law's creep speed (about 1 where the law holds the body); "
                     "not_converged: steps whose Newton solve failed even after retries; line_search_stalls: Newton "
                     "iterations without decrease; step_retries: steps redone as two half steps.")
-            + _table(table, verdicts=["status", "finite"]))
+            + _table(table, verdicts=[c for c in stability if COLUMNS[c].better == "true"]))
 
 
 def _stability_matrix(gates: Sequence[object]) -> str:
@@ -384,8 +373,9 @@ def _contact_laws(frame: pd.DataFrame) -> str:
 def _provenance(frame: pd.DataFrame) -> str:
     """The distinct provenance values of the results, and the plotting library that draws the figures."""
     rows = []
-    for col in [c for c in PROVENANCE_COLUMNS if c in frame] + [c for c in frame if c.endswith("_version")
-                                                                  and c not in PROVENANCE_COLUMNS]:
+    provenance = names("provenance", placed=True)  # the table's own, not each run's key
+    for col in [c for c in provenance if c in frame] + [c for c in frame if c.endswith("_version")
+                                                        and c not in provenance]:
         values = [str(v) for v in frame[col].dropna().unique() if str(v) != ""]
         rows.append({"field": col, "value": ", ".join(values)})
     rows.append({"field": "plots", "value": f"plotly {plotly_version()} (plotly.js inline)"})

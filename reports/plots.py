@@ -192,7 +192,7 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
                                             "dt [s]", "err_truth")}
 
 
-#: The parts of a variant's error against the truth (`analysis.table.TRUTH_COLUMNS`), in the order drawn.
+#: The parts of a variant's error against the truth (`analysis.schema`), in the order drawn.
 ERROR_PARTS: tuple[tuple[str, str], ...] = (
     ("err_projection", "projection: the truth projected onto the subspace"),
     ("pos_rmse_rel", "reduction: against the full-space run at its dt"),

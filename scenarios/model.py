@@ -136,6 +136,10 @@ class Effects:
     viscosity: bool = True
 
 
+#: Default gravity [m/s^2] (y is up): a scenario's, and the metrics' (`analysis.metrics`) where none is given.
+GRAVITY: Vec3 = (0.0, -9.81, 0.0)
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One simulation scene. `plane` is None for scenes without ground (no contact, no friction)."""
@@ -148,7 +152,7 @@ class Scenario:
     initial: Initial = field(default_factory=Initial)
     time: TimeSpec = field(default_factory=TimeSpec)
     effects: Effects = field(default_factory=Effects)
-    gravity: Vec3 = (0.0, -9.81, 0.0)
+    gravity: Vec3 = GRAVITY
     description: str = ""
     tags: tuple[str, ...] = ()
 

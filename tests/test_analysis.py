@@ -6,7 +6,6 @@ import pandas as pd
 import pytest
 
 from analysis.derived import remeshing_summary, with_remesh_ratio
-from analysis.table import truthy
 
 
 def row(scenario: str, mesh: str, err: float, remesh: str = "", status: str = "ok") -> dict:
@@ -30,9 +29,3 @@ def test_remeshing_summary_is_empty_without_a_run_on_another_mesh() -> None:
     assert remeshing_summary(pd.DataFrame([row("a", "cheese/medium", 0.01)])).empty
     assert remeshing_summary(pd.DataFrame([{"scenario": "a", "pos_rmse_rel": 0.1}])).empty
 
-
-def test_a_boolean_cell_reads_the_same_from_csv_text_and_from_memory():
-    import numpy as np
-
-    assert [truthy(v) for v in (True, "True", " true", "yes", "1", "1.0", 1, np.bool_(True))] == [True] * 8
-    assert [truthy(v) for v in (False, "False", "no", "0", 0, None, float("nan"), "")] == [False] * 8

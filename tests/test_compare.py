@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from bench.cli import main
-from bench.compare import (DEFAULT_RULES, CompareError, compare_results, read_results, regressions,
+from bench.compare import (CompareError, compare_results, default_rules, read_results, regressions,
                            with_tolerances)
 from bench.gates import load_gates
 from bench.runner import run_suite
@@ -105,22 +105,22 @@ def test_a_newly_failing_gate_is_a_regression_within_the_tolerance(tmp_path: Pat
     ({"energy_ratio_max": None}, "no value in the new set"),
 ])
 def test_stability_regressions(change: dict, reason: str):
-    comparison = compare_results(_results(), _changed(**change), DEFAULT_RULES, GATES)
+    comparison = compare_results(_results(), _changed(**change), default_rules(), GATES)
     assert regressions(comparison) == 1
     assert reason in comparison.loc[comparison["verdict"] == "regression", "reason"].iloc[0]
 
 
 def test_missing_and_new_rows():
     base, new = _results(), _results()
-    missing = compare_results(base, new.drop(index=3), DEFAULT_RULES, GATES)
+    missing = compare_results(base, new.drop(index=3), default_rules(), GATES)
     assert regressions(missing) == 1 and missing.iloc[0]["reason"] == "missing in the new set"
     extra = new.iloc[[1]].assign(variant="r20", solver="licrom")
-    grown = compare_results(base, pd.concat([new, extra], ignore_index=True), DEFAULT_RULES, GATES)
+    grown = compare_results(base, pd.concat([new, extra], ignore_index=True), default_rules(), GATES)
     assert regressions(grown) == 0 and (grown["verdict"] == "new").sum() == 1
 
 
 def test_tolerance_specs():
-    rules = {r.metric: r for r in with_tolerances(DEFAULT_RULES, ["pos_rmse_rel=5%,0.001", "speedup=x2",
+    rules = {r.metric: r for r in with_tolerances(default_rules(), ["pos_rmse_rel=5%,0.001", "speedup=x2",
                                                                   "my_metric=higher:1%", "finite=off"])}
     assert (rules["pos_rmse_rel"].rel, rules["pos_rmse_rel"].abs) == (0.05, 0.001)
     assert rules["speedup"].factor == 2.0 and rules["speedup"].better == "higher"
@@ -129,7 +129,7 @@ def test_tolerance_specs():
     for bad in ("pos_rmse_rel", "my_metric=5%", "speedup=x0.5", "speedup=sideways:5%", "pos_rmse_rel=-1",
                 "pos_rmse_rel=abc%"):
         with pytest.raises(CompareError, match="tolerance"):
-            with_tolerances(DEFAULT_RULES, [bad])
+            with_tolerances(default_rules(), [bad])
 
 
 def test_bad_input_exits_2_naming_it(tmp_path: Path):
@@ -147,7 +147,7 @@ def test_the_report_section_escapes_every_text():
     hostile = "quick/<script>alert(1)</script>"
     base, new = _results(), _changed(status="failed", failure="<img src=x onerror=alert(2)>", pos_rmse_rel=None)
     base.loc[1, "scenario"] = new.loc[1, "scenario"] = hostile
-    fragment = comparison_section(compare_results(base, new, DEFAULT_RULES, GATES), "<b>base</b>")
+    fragment = comparison_section(compare_results(base, new, default_rules(), GATES), "<b>base</b>")
     assert "<script>" not in fragment and "<img" not in fragment and "<b>" not in fragment
     assert "&lt;script&gt;" in fragment and "&lt;img src=x" in fragment
     assert "Regressions against the baseline &lt;b&gt;base&lt;/b&gt;: 1" in fragment

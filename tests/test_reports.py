@@ -21,9 +21,9 @@ import pyvista
 
 from analysis import metrics
 from analysis.derived import with_remesh_ratio
+from analysis.schema import names
 from analysis.table import (
     IDENTITY_COLUMNS,
-    METRIC_COLUMNS,
     PROVENANCE_COLUMNS,
     column_order,
     provenance,
@@ -96,8 +96,9 @@ def test_results_csv_column_order_and_round_trip(tmp_path: Path, runs) -> None:
     path = write_results_csv(rows, tmp_path / "out" / "results.csv", provenance_info=PROVENANCE)
     frame = pd.read_csv(path)
     columns = list(frame.columns)
+    metric_columns = set(names("parameter", "accuracy", "stability", "timing"))
     kinds = ["identity" if c in IDENTITY_COLUMNS or c.startswith("param_") else
-             "metric" if c in METRIC_COLUMNS else "provenance" if c in PROVENANCE_COLUMNS else "?" for c in columns]
+             "metric" if c in metric_columns else "provenance" if c in PROVENANCE_COLUMNS else "?" for c in columns]
     assert "?" not in kinds
     assert kinds == sorted(kinds, key=["identity", "metric", "provenance"].index)
     assert columns[:8] == ["suite", "scenario", "split", "mesh", "train_mesh", "solver", "variant", "param_r"]

@@ -1,0 +1,193 @@
+"""Row building: the rows of results.csv from the stored runs of a suite (the harness, `bench.runner`, runs them
+and writes the table; what a row holds is decided here).
+
+A row is one run: a member's reference, a level of a truth ladder, or a solver variant on a member. It holds the
+run's identity and parameters, its metrics against the full-space run it is compared with (`analysis.metrics`),
+its timings, and with a ground truth its error against the truth and the truth's own figures (`analysis.truth`);
+the figures across rows (`analysis.derived`, `analysis.truth.with_frontier`) are added last. The columns are those
+of `analysis.schema`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Protocol
+
+from tqdm import tqdm
+
+from analysis.derived import with_ref_dt_change, with_remesh_ratio
+from analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
+from analysis.schema import computed
+from analysis.transfer import transfer_to_mesh
+from analysis.truth import TruthEstimate, assess_ladder, certified_horizon, wall_s_per_sim_s, with_frontier
+from scenarios.model import MeshSpec, Scenario
+from scenarios.suites import Suite, SuiteMember, TruthSpec
+from solvers.trajectory import Trajectory
+
+
+class RunTask(Protocol):
+    """One run of the harness (`bench.runner.Task`): its scenario, solver, mesh (None: the scenario's) and store
+    key."""
+
+    scenario: Scenario
+    solver: str
+    mesh: MeshSpec | None
+
+    @property
+    def key(self) -> str: ...
+
+
+class LadderRuns(Protocol):
+    """A member's truth ladder with one integrator (`bench.runner.Ladder`): its finished runs level by level, the
+    differences d_k between successive levels [fraction of L], whether a run failed, and the per-frame difference
+    (t (F,) [s], d (F,) [fraction of L]) of its last two levels."""
+
+    integrator: str
+    tasks: Sequence[RunTask]
+    differences: Sequence[float]
+    failed: bool
+    frame_differences: tuple | None
+
+
+class Runs(Protocol):
+    """What row building reads from the harness: stored runs by key, the variants that apply to a member (with
+    their parameters, None where the variant has none for the member's shape), a variant's run on a member (or why
+    it has none), and the store key of the reference solver's run of a scenario on a mesh."""
+
+    def load(self, key: str) -> tuple[Trajectory | None, dict]: ...
+
+    def member_variants(self, member: SuiteMember) -> list[tuple[object, dict | None]]: ...
+
+    def task(self, variant: object, member: SuiteMember, params: dict) -> RunTask | str: ...
+
+    def key(self, scenario: Scenario, solver: str, mesh: MeshSpec | None) -> str: ...
+
+
+def truth_columns(ladders: Mapping[str, LadderRuns], spec_tol: float
+                  ) -> tuple[dict, TruthEstimate | None, RunTask | None]:
+    """(the truth columns of every row of a scenario, its estimate, the truth's task) from its ladders (the
+    truth's first); no truth where its ladder's first run failed."""
+    truth = next(iter(ladders.values()))
+    if not truth.tasks:
+        return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
+    est = assess_ladder(truth.differences, spec_tol, truth.integrator)
+    finest = truth.tasks[-1]
+    horizon = certified_horizon(*truth.frame_differences, spec_tol) if truth.frame_differences else None
+    return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
+             "truth_order": est.order, "truth_dt": finest.scenario.time.dt, "truth_depth": est.level,
+             "truth_integrator": truth.integrator, "truth_horizon_s": horizon}, est, finest)
+
+
+def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
+                 ladders: Mapping[str, Mapping[str, LadderRuns]] | None = None, truth: TruthSpec | None = None
+                 ) -> list[dict]:
+    """One results row per (member, variant) plus one per reference and one per ladder run: identity, metrics,
+    timings; with ladders, every row also gets err_truth (against its scenario's truth; remeshed runs carried onto
+    the truth's mesh first) and err_truth_horizon (the same over the frames up to the truth's certified horizon), the
+    truth's columns (`truth_columns`) and the frontier's (`with_frontier`), and every variant row its error's parts:
+    err_time (the full-space run it is compared with, against the truth: the time step's share), pos_rmse_rel
+    (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
+    basis's share). `refs` are the members' reference runs by scenario name; `runs` gives the stored runs and the
+    variants of each member (the harness's `bench.runner.StoreRuns`)."""
+    rows = []
+    for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
+        sc = m.scenario
+        ref_task = refs[sc.name]
+        ref, ref_stats = runs.load(ref_task.key)
+        base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
+                "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
+        truth_traj = truth_early = None
+        if ladders and sc.name in ladders:
+            columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0)
+            base |= columns
+            truth_traj = runs.load(truth_task.key)[0] if truth_task else None
+            if truth_traj is not None and columns.get("truth_horizon_s") is not None:
+                truth_early = truth_traj.until(columns["truth_horizon_s"])
+
+        def err_truth(traj, other_mesh: bool = False, truth_traj=truth_traj, truth_early=truth_early) -> dict:
+            if truth_traj is None or traj is None:
+                return {}
+            here = transfer_to_mesh(traj, truth_traj) if other_mesh else traj
+            return ({"err_truth": pos_rmse_rel(truth_traj, here)}
+                    | ({"err_truth_horizon": pos_rmse_rel(truth_early, here)} if truth_early is not None else {}))
+
+        def error_parts(traj, run_ref, other_mesh: bool, truth_traj=truth_traj) -> dict:
+            """err_time: the full-space run this row is compared with, against the truth; err_projection: the
+            truth (carried onto the row's mesh) projected onto the row's subspace, where it has one."""
+            if truth_traj is None or run_ref is None:
+                return {}
+            parts = {"err_time": err_truth(run_ref, other_mesh)["err_truth"]}
+            if traj is not None and traj.basis is not None:
+                truth_here = transfer_to_mesh(truth_traj, traj) if other_mesh else truth_traj
+                parts["err_projection"] = proj_rmse_rel(truth_here, traj.basis)
+            return parts
+
+        rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,
+                            "integrator": sc.time.integrator}
+                    | run_timing(ref_stats, ref_stats, sc.time.dt) | run_metrics(ref, ref, sc, ref_stats)
+                    | (err_truth(ref) if not ref_stats.get("failed") else {}))
+        for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
+            for k, task in enumerate(ladder.tasks):
+                traj, stats = runs.load(task.key)
+                rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
+                                    "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
+                            | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)
+                            | err_truth(traj))
+        for v, params in runs.member_variants(m):
+            label = v.label or v.solver
+            if params is None:
+                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed",
+                                    "failure": "no reduced model for this mesh shape"})
+                continue
+            task = runs.task(v, m, params)
+            if isinstance(task, str):
+                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": task})
+                continue
+            mesh = task.mesh
+            traj, stats = runs.load(task.key)
+            # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed),
+            # or against the reference itself after carrying the trajectory onto its mesh (`transfer`)
+            if mesh is None or v.transfer:
+                v_ref, v_ref_stats = ref, ref_stats
+                if mesh is not None and traj is not None:
+                    traj = transfer_to_mesh(traj, ref)
+            else:
+                v_ref, v_ref_stats = runs.load(runs.key(sc, ref_task.solver, mesh))
+            row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
+                          "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
+                          "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
+                          "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
+            metrics = run_metrics(v_ref, traj, task.scenario, stats)
+            other_mesh = mesh is not None and not v.transfer
+            truth_err = (err_truth(traj, other_mesh) | error_parts(traj, v_ref, other_mesh)
+                         if metrics["status"] == "ok" else {})
+            rows.append(row | run_timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
+    return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
+
+
+def run_timing(stats: dict, ref_stats: dict, dt: float) -> dict:
+    """Timing and solver-health columns (Newton failures, line-search stalls, step retries, the linear solver that
+    ran: `linear_solver` of a full-space run's stats); speedup = the reference's step time / this step time, both
+    measured in this run; wall_s_per_sim_s = the steps' wall time per simulated second at time step dt [s]
+    (warm-up, setup and training apart)."""
+    keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
+            "newton_iters_max", "not_converged", "line_search_stalls", "step_retries", "linear_solver")
+    row = {k: stats.get(k) for k in keys}
+    row["wall_s_per_sim_s"] = wall_s_per_sim_s([s["wall_s"] for s in stats.get("per_step", [])], dt)
+    if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
+        row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
+    return row
+
+
+def run_metrics(ref: Trajectory | None, traj: Trajectory | None, sc: Scenario, stats: dict) -> dict:
+    """Metric columns of one row (a reduced run's trajectory carries its basis, for the projection error); a failed
+    run (diverged, or no trajectory) gets `status = failed`, its reason and no accuracy metrics (a truncated
+    trajectory would look accurate). The schema's computed columns (`analysis.schema.computed`) follow `compare`'s."""
+    if traj is None or ref is None or stats.get("failed"):
+        return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
+    contact = replace(sc.contact, stiffness=stats["contact_stiffness"])  # the stiffness the run resolved
+    return ({"status": "ok", "failure": ""} | compare(ref, traj, plane=sc.plane, material=sc.material,
+                                                      gravity=sc.gravity, basis=traj.basis,
+                                                      contact=contact if sc.effects.friction else None)
+            | {c.name: c.compute(ref, traj, sc) for c in computed()})

@@ -1,0 +1,312 @@
+"""The results schema: every column results.csv can hold, declared once, and the one reader of a results cell.
+
+A `Column` says what a column is (kind), which way it is better and by how much it may move before `frictionbench
+compare` calls it a regression, its unit and meaning, and the function that computes it. Everything else is derived
+from `COLUMNS`: the table's column order (`analysis.table`), the comparison rules (`bench.compare.default_rules`),
+the stability metrics of the headline, the report and the comparison, the report's column groups, the columns
+`bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
+
+A metric needs only its declaration here: a `Column` with `compute` (a function of the run's reference, the run's
+trajectory and its scenario) is evaluated on every finished run by row building (`analysis.rows.run_metrics`).
+Plug-ins and tests add columns with `register`.
+
+Cells are read by `is_missing`, `number` and `flag` (and `truthy`), whether they come from rows built in memory or
+from results.csv as pandas reads it back.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import pandas as pd
+
+#: What a column is: identity (which row: the key of a row across result sets), parameter (what ran: scene and
+#: solver settings), accuracy (against a reference or the truth), stability (of the run itself), timing (measured
+#: on this machine, never compared for behaviour), provenance (where and with what the results were made).
+KINDS: tuple[str, ...] = ("identity", "parameter", "accuracy", "stability", "timing", "provenance")
+#: The kinds `compare` judges (a tolerance may be set per kind: `frictionbench compare --tol KIND=SPEC`).
+JUDGED_KINDS: tuple[str, ...] = ("accuracy", "stability", "timing")
+#: Which value is better: lower / higher: the smaller / larger; true: a flag that should hold (status `ok` counts
+#: as true); one: the closer to 1; none: not judged by `compare` (only gates may judge it).
+DIRECTIONS: tuple[str, ...] = ("lower", "higher", "true", "one", "none")
+#: The tolerance of accuracy figures: 10% of the baseline, never less than 1e-4 (of L for *_rel).
+ACCURACY_TOL: dict[str, float] = {"rel": 0.10, "abs": 1e-4}
+#: The tolerance of timing figures, a ratio: loose, since step times on shared machines move by tens of per cent.
+TIMING_FACTOR = 1.5
+#: Distribution name -> column of its version in `analysis.table.provenance`.
+VERSIONED_PACKAGES: dict[str, str] = {
+    "frictionbench": "frictionbench_version",
+    "numpy": "numpy_version",
+    "scipy": "scipy_version",
+    "torch": "torch_version",
+    "warp-lang": "warp_version",
+    "taichi": "taichi_version",
+    "mkl": "mkl_version",  # MKL PARDISO, the full-space solver's default linear solver (`linear_solver` per row)
+}
+
+
+@dataclass(frozen=True)
+class Column:
+    """One results column.
+
+    name: the column; kind: one of KINDS; better: one of DIRECTIONS; rel [-], abs [unit], factor [-]: the
+    tolerance of `compare` (a bad change beyond max(rel |baseline|, abs), or for timing beyond the ratio factor);
+    unit: its unit (`-` dimensionless, `L` a fraction of the body's size, `text`, `flag`, `count`); meaning: one line;
+    source: the dotted name of the function that computes it; placed: True where the table gives it a fixed place
+    (the identity columns first, the provenance columns last, the others between, in the order of COLUMNS), False
+    where it follows those in the order the rows first hold it (the columns results.csv has always placed so);
+    summary: shown in the report's results table; compute: for a metric computed per run by row building,
+    f(reference, trajectory, scenario) -> value (None: computed where `source` says).
+    """
+
+    name: str
+    kind: str
+    better: str = "none"
+    unit: str = "-"
+    meaning: str = ""
+    source: str = ""
+    rel: float = 0.0
+    abs: float = 0.0
+    factor: float | None = None
+    placed: bool = True
+    summary: bool = False
+    compute: Callable | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"column {self.name!r}: kind {self.kind!r} not one of {list(KINDS)}")
+        if self.better not in DIRECTIONS:
+            raise ValueError(f"column {self.name!r}: better {self.better!r} not one of {list(DIRECTIONS)}")
+
+    @property
+    def judged(self) -> bool:
+        """Whether `compare` judges it (a judged kind and a direction)."""
+        return self.kind in JUDGED_KINDS and self.better != "none"
+
+    def tolerance(self) -> str:
+        """The tolerance as `compare --tol` writes it (`10%,0.0001`, `x1.5`, `0`), '' where not judged."""
+        if not self.judged or self.better == "true":
+            return ""
+        if self.factor is not None:
+            return f"x{self.factor:g}"
+        parts = ([f"{self.rel * 100:g}%"] if self.rel else []) + ([f"{self.abs:g}"] if self.abs else [])
+        return ",".join(parts) or "0"
+
+
+def _accuracy(name: str, meaning: str, source: str, **kw) -> Column:
+    """An error that should stay small: lower is better, within ACCURACY_TOL, a fraction of L unless told."""
+    return Column(name, "accuracy", "lower", kw.pop("unit", "L"), meaning, source, **ACCURACY_TOL, **kw)
+
+
+def _timing(name: str, better: str, unit: str, meaning: str, source: str, **kw) -> Column:
+    """A measured time (or a ratio of times), judged as a ratio within TIMING_FACTOR where it has a direction."""
+    factor = TIMING_FACTOR if better != "none" else None
+    return Column(name, "timing", better, unit, meaning, source, factor=factor, **kw)
+
+
+_ROWS = "analysis.rows.collect_rows"
+_METRICS = "analysis.metrics"
+_STATS = "solvers.run.run_scenario"
+
+#: Every column, in table order (see `Column.placed`).
+COLUMNS: dict[str, Column] = {c.name: c for c in (
+    Column("suite", "identity", unit="text", meaning="the suite the row belongs to", source=_ROWS, summary=True),
+    Column("scenario", "identity", unit="text", meaning="the scenario (a suite member)", source=_ROWS, summary=True),
+    Column("split", "identity", unit="text", meaning="train or test split of the member", source=_ROWS,
+           summary=True),
+    Column("mesh", "identity", unit="text", meaning="the mesh the run ran on", source=_ROWS, summary=True),
+    Column("train_mesh", "identity", unit="text", meaning="the mesh a reduced model trained on ('' without one)",
+           source=_ROWS),
+    Column("solver", "identity", unit="text", meaning="the solver that ran", source=_ROWS, summary=True),
+    Column("variant", "identity", unit="text", meaning="the solver variant's label (`reference`, a ladder level)",
+           source=_ROWS, summary=True),
+    Column("status", "stability", "true", "text", "`ok`, or `failed` for a run without a usable trajectory",
+           "analysis.rows.run_metrics", summary=True),
+    Column("failure", "stability", unit="text", meaning="why a run failed (the exception), '' otherwise",
+           source="analysis.rows.run_metrics", summary=True),
+    Column("frames_compared", "accuracy", unit="count", meaning="frames whose times the run and its reference share",
+           source=f"{_METRICS}.compare"),
+    _accuracy("pos_rmse_rel", "RMS over frames and vertices of the position error against the same-dt reference",
+              f"{_METRICS}.pos_rmse_rel", summary=True),
+    _accuracy("pos_max_rel", "largest per-frame RMS position error", f"{_METRICS}.pos_max_rel"),
+    _accuracy("com_err_rel", "largest distance between the mass-weighted centres", f"{_METRICS}.com_err_rel",
+              summary=True),
+    _accuracy("final_err_rel", "RMS position error at the last frame", f"{_METRICS}.final_err_rel", summary=True),
+    _accuracy("slide_err_rel", "error of the centre's travel along the plane over the reference's (floor 1% of L)",
+              f"{_METRICS}.slide_err_rel", unit="-", summary=True),
+    _accuracy("proj_rmse_rel", "the reference projected onto the run's subspace: the least pos_rmse_rel in it",
+              f"{_METRICS}.proj_rmse_rel", summary=True),
+    Column("stick", "accuracy", unit="flag", meaning="the body ends at rest on the plane", source=f"{_METRICS}.stick"),
+    Column("stick_ref", "accuracy", unit="flag", meaning="the reference ends at rest on the plane",
+           source=f"{_METRICS}.stick"),
+    Column("stick_agree", "accuracy", "true", "flag", "stick and stick_ref agree", f"{_METRICS}.stick_agree",
+           summary=True),
+    Column("end_speed", "accuracy", unit="m/s", meaning="centre speed along the plane over the last 10% of the run",
+           source=f"{_METRICS}.stick"),
+    Column("end_speed_ref", "accuracy", unit="m/s", meaning="the reference's end_speed", source=f"{_METRICS}.stick"),
+    Column("finite", "stability", "true", "flag", "every stored position, velocity and latent coordinate is finite",
+           f"{_METRICS}.finite"),
+    Column("max_penetration_rel", "stability", "lower", "L", "deepest surface point below the plane",
+           f"{_METRICS}.max_penetration_rel", **ACCURACY_TOL),
+    Column("inverted_tets", "stability", "lower", "count", "tets with det F <= 0 in some frame",
+           f"{_METRICS}.inverted_tets"),
+    Column("inverted_tets_frame_max", "stability", "lower", "count", "most tets with det F <= 0 in one frame",
+           f"{_METRICS}.inverted_tets"),
+    Column("inverted_tets_final", "stability", "lower", "count", "tets with det F <= 0 in the last frame",
+           f"{_METRICS}.inverted_tets_in_frame"),
+    Column("volume_ratio_final", "stability", "one", "-", "volume at the end over the rest volume",
+           f"{_METRICS}.volume_ratio", abs=0.002),
+    Column("energy_ratio_max", "stability", "lower", "-", "largest total energy over the initial (> 1: energy grew)",
+           f"{_METRICS}.energy_ratio_max", abs=0.002),
+    Column("creep_speed_law", "stability", unit="m/s", meaning="the friction law's creep speed for the body at the end",
+           source=f"{_METRICS}.creep_speed_law"),
+    Column("creep_ratio", "stability", "lower", "-", "end speed along the plane over creep_speed_law (~1: held)",
+           f"{_METRICS}.stability", rel=0.10, abs=0.01),
+    _timing("setup_s", "none", "s", "per-run setup", _STATS),
+    _timing("train_s", "none", "s", "training of the reduced model (offline, per shape)",
+            "solvers.contract.Solver.prepare"),
+    _timing("step_ms_median", "lower", "ms", "median wall time of a step", _STATS, summary=True),
+    _timing("step_ms_p95", "lower", "ms", "95th percentile of a step's wall time", _STATS),
+    _timing("speedup", "higher", "-", "the reference's step_ms_median over this run's, same run",
+            "analysis.rows.run_timing", summary=True),
+    Column("integrator", "parameter", unit="text", meaning="the run's time integrator", source=_ROWS, summary=True),
+    _accuracy("err_truth", "pos_rmse_rel against the scenario's ground truth (another mesh carried onto its mesh)",
+              _ROWS, summary=True),
+    _accuracy("err_truth_horizon", "err_truth over the frames up to truth_horizon_s", _ROWS, summary=True),
+    _accuracy("err_time", "the full-space run the row is compared with, against the truth: the time step's share",
+              _ROWS, summary=True),
+    _accuracy("err_projection", "the truth projected onto the row's subspace: the basis's share", _ROWS,
+              summary=True),
+    _timing("wall_s_per_sim_s", "lower", "s/s", "the steps' wall time per simulated second",
+            "analysis.truth.wall_s_per_sim_s", summary=True),
+    _timing("speedup_equal_accuracy", "higher", "-", "full-space ladder's cost at this row's err_truth over its cost",
+            "analysis.truth.with_frontier", summary=True),
+    _timing("frontier_note", "none", "text", "why speedup_equal_accuracy is missing or an upper bound",
+            "analysis.truth.with_frontier", summary=True),
+    Column("truth_certified", "accuracy", "true", "flag", "the truth's last ladder difference met the tolerance",
+           "analysis.rows.truth_columns", summary=True),
+    Column("truth_horizon_s", "accuracy", unit="s", meaning="end of the first stretch the truth meets tol frame by "
+           "frame", source="analysis.truth.certified_horizon", summary=True),
+    _accuracy("truth_err_est", "Richardson estimate of the truth's own error", "analysis.truth.richardson",
+              summary=True),
+    Column("truth_order", "accuracy", meaning="the order the truth's error estimate used",
+           source="analysis.truth.richardson"),
+    Column("truth_dt", "parameter", unit="s", meaning="the truth's time step", source="analysis.rows.truth_columns"),
+    Column("truth_depth", "parameter", unit="count", meaning="the truth's ladder level (dt / 2^depth)",
+           source="analysis.rows.truth_columns"),
+    Column("truth_integrator", "parameter", unit="text", meaning="the truth's time integrator",
+           source="analysis.rows.truth_columns"),
+    Column("ladder", "parameter", unit="text", meaning="on a truth-ladder row: its ladder's integrator", source=_ROWS,
+           summary=True),
+    Column("ladder_integrator", "parameter", unit="text", meaning="on a truth-ladder row: its integrator",
+           source=_ROWS),
+    Column("ladder_level", "parameter", unit="count", meaning="on a truth-ladder row: its level k (dt / 2^k)",
+           source=_ROWS),
+    Column("mu", "parameter", meaning="the plane's friction coefficient", source=_ROWS, placed=False),
+    Column("law", "parameter", unit="text", meaning="the contact law", source=_ROWS, placed=False),
+    Column("tags", "parameter", unit="text", meaning="the scenario's tags", source=_ROWS, placed=False),
+    Column("run", "provenance", unit="text", meaning="the run's key in the run store", source="bench.store.run_key",
+           placed=False),
+    Column("dt", "parameter", unit="s", meaning="the run's time step", source=_ROWS, placed=False, summary=True),
+    _timing("warmup_s", "none", "s", "first step with kernel compilation, apart", _STATS, placed=False),
+    Column("newton_iters_mean", "stability", meaning="Newton iterations per step", source=_STATS, placed=False),
+    Column("newton_iters_max", "stability", unit="count", meaning="most Newton iterations in a step", source=_STATS,
+           placed=False),
+    Column("not_converged", "stability", "lower", "count", "steps whose Newton solve failed even after retries",
+           _STATS, placed=False),
+    Column("line_search_stalls", "stability", "lower", "count", "Newton iterations without decrease", _STATS,
+           placed=False),
+    Column("step_retries", "stability", "lower", "count", "steps redone as two half steps", _STATS, placed=False),
+    Column("linear_solver", "parameter", unit="text", meaning="the linear solver that ran", source=_STATS,
+           placed=False),
+    Column("remesh", "parameter", unit="text", meaning="the other mesh resolution a remeshed variant ran on",
+           source=_ROWS, placed=False),
+    Column("r", "parameter", unit="count", meaning="a reduced variant's subspace dimension", source=_ROWS,
+           placed=False),
+    Column("model", "parameter", unit="text", meaning="the trained model a variant uses", source=_ROWS, placed=False),
+    _accuracy("remesh_ratio", "pos_rmse_rel on another mesh over that on the training mesh",
+              "analysis.derived.with_remesh_ratio", unit="-", placed=False),
+    _accuracy("ref_dt_change", "the full-space run at a smaller dt against the reference: its own time error",
+              "analysis.derived.with_ref_dt_change", placed=False),
+    *(Column(name, "provenance", unit="text", meaning=meaning, source="analysis.table.provenance")
+      for name, meaning in (
+        ("commit", "git HEAD of the source tree"), ("commit_dirty", "tracked files differ from HEAD"),
+        ("timestamp_utc", "when the table was written"), ("device", "the device the solvers ran on"),
+        ("cpu_name", "the CPU model"), ("gpu_name", "the first GPU's name"), ("platform", "the operating system"),
+        ("python_version", "the Python version"))),
+    *(Column(column, "provenance", unit="text", meaning=f"installed version of {dist}",
+             source="analysis.table.provenance") for dist, column in VERSIONED_PACKAGES.items()),
+)}
+
+
+def register(column: Column) -> Column:
+    """Add a column to the schema (after every other); a name already declared is an error. Returns it."""
+    if column.name in COLUMNS:
+        raise ValueError(f"column {column.name!r} is already declared")
+    COLUMNS[column.name] = column
+    return column
+
+
+def names(*kinds: str, placed: bool | None = None) -> tuple[str, ...]:
+    """The columns of these kinds (every kind when none is given), in table order; only the placed (or unplaced)
+    ones when `placed` is given."""
+    return tuple(c.name for c in COLUMNS.values()
+                 if (not kinds or c.kind in kinds) and (placed is None or c.placed == placed))
+
+
+def stability_metrics() -> tuple[str, ...]:
+    """The stability metrics (kind `stability`): what the headline, the report and `compare` call stability."""
+    return names("stability")
+
+
+def computed() -> tuple[Column, ...]:
+    """The columns row building computes per finished run (`Column.compute`)."""
+    return tuple(c for c in COLUMNS.values() if c.compute is not None)
+
+
+def docs_table() -> str:
+    """The table of metrics in docs/design.md (Markdown): every column but identity and provenance, by kind."""
+    lines = ["| column | kind | better | tolerance | unit | meaning | computed in |",
+             "|---|---|---|---|---|---|---|"]
+    for kind in KINDS[1:-1]:
+        lines += [f"| `{c.name}` | {c.kind} | {c.better} | {c.tolerance() or '-'} | {c.unit} | {c.meaning} | "
+                  f"`{c.source}` |" for c in COLUMNS.values() if c.kind == kind]
+    return "\n".join(lines) + "\n"
+
+
+def is_missing(value: object) -> bool:
+    """Whether a results cell holds no value: None, NaN, NaT, pd.NA (an empty CSV cell read back)."""
+    return value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value)))
+
+
+def number(value: object, finite: bool = False) -> float | None:
+    """A cell as a float; None when missing or not a number (and, with `finite`, when infinite)."""
+    if is_missing(value):
+        return None
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return None
+    return None if finite and not math.isfinite(x) else x
+
+
+_TRUE = frozenset({"true", "yes", "1", "1.0", "ok", "pass", "passed"})
+_FALSE = frozenset({"false", "no", "0", "0.0", "failed", "fail"})
+
+
+def flag(value: object) -> bool | None:
+    """A boolean cell: True for True, 1 and the texts true/yes/1/1.0/ok/pass/passed (any case), False for False, 0
+    and false/no/0/0.0/failed/fail; None when missing or any other text."""
+    if is_missing(value):
+        return None
+    if isinstance(value, str):
+        text = value.strip().lower()
+        return True if text in _TRUE else False if text in _FALSE else None
+    return bool(value)
+
+
+def truthy(value: object) -> bool:
+    """Whether a boolean cell holds true (`flag`); missing and unknown texts are false."""
+    return flag(value) is True
