@@ -276,6 +276,18 @@ def docs_table() -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The lines around the table of metrics in docs/design.md.
+DOCS_TABLE_BEGIN = "<!-- metrics table: analysis.schema.docs_table -->\n"
+DOCS_TABLE_END = "<!-- end of metrics table -->"
+
+
+def docs_with_table(text: str) -> str:
+    """A design document's text with its table of metrics (between DOCS_TABLE_BEGIN and DOCS_TABLE_END) replaced
+    by `docs_table()`."""
+    begin = text.index(DOCS_TABLE_BEGIN) + len(DOCS_TABLE_BEGIN)
+    return text[:begin] + docs_table() + text[text.index(DOCS_TABLE_END, begin):]
+
+
 def is_missing(value: object) -> bool:
     """Whether a results cell holds no value: None, NaN, NaT, pd.NA (an empty CSV cell read back)."""
     return value is None or (pd.api.types.is_scalar(value) and bool(pd.isna(value)))
@@ -310,3 +322,10 @@ def flag(value: object) -> bool | None:
 def truthy(value: object) -> bool:
     """Whether a boolean cell holds true (`flag`); missing and unknown texts are false."""
     return flag(value) is True
+
+
+if __name__ == "__main__":  # python -m analysis.schema: rewrite the table of metrics in docs/design.md
+    from pathlib import Path
+
+    design = Path(__file__).resolve().parents[1] / "docs" / "design.md"
+    design.write_text(docs_with_table(design.read_text(encoding="utf-8")), encoding="utf-8")

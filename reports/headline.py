@@ -18,6 +18,7 @@ from analysis.schema import is_missing, stability_metrics, truthy
 from analysis.table import variant_labels
 from reports.plots import accuracy_columns, ladder_mask, numeric_column
 
+
 def verdict_frame(gates: Sequence[object]) -> pd.DataFrame:
     """Gate verdicts (mappings, dataclasses or plain objects) as a table with a `status` column: `passed`,
     `failed` or `undecidable` (the verdicts' own `status` where they have one, else from `passed`)."""
