@@ -81,7 +81,8 @@ def _requirement_missing(package: str) -> str | None:
 
 def get_solver(name: str) -> type[Solver]:
     """The solver class registered as `name`; a clear error lists the known ones. Raises `SolverUnavailable`
-    (with the reason) where its module does not import or a package it `requires` is missing."""
+    (with the reason) where its module does not import, its path names no `Solver` subclass of that name (a broken
+    plug-in must not break the others), or a package it `requires` is missing."""
     try:
         path = entries()[name]
     except KeyError:
@@ -92,9 +93,9 @@ def get_solver(name: str) -> type[Solver]:
     except ImportError as err:
         raise SolverUnavailable(name, f"its module {module} does not import ({err})") from err
     for part in qualname.split("."):
-        obj = getattr(obj, part)
+        obj = getattr(obj, part, None)
     if not (isinstance(obj, type) and issubclass(obj, Solver)) or obj.name != name:
-        raise TypeError(f"solver {name!r} ({path}): not a solvers.contract.Solver subclass named {name!r}")
+        raise SolverUnavailable(name, f"{path} is not a solvers.contract.Solver subclass named {name!r}")
     for package in obj.requires:
         reason = _requirement_missing(package)
         if reason:

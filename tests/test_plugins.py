@@ -39,6 +39,7 @@ drift = "toyplug:Drift"
 needy = "toyplug:Needy"
 heavy = "toyplug_heavy:Heavy"
 fragile = "toyplug:Fragile"
+misnamed = "toyplug:Drift"
 full = "toyplug:Drift"
 """
 
@@ -134,6 +135,8 @@ def test_a_solver_without_its_required_package_is_unavailable_with_the_reason(in
         registry.get_solver("needy")
     assert f"No module named {MISSING!r}" in registry.unavailable("heavy")
     assert "toyplug_heavy does not import" in registry.unavailable("heavy")
+    assert registry.unavailable("misnamed") == ("toyplug:Drift is not a solvers.contract.Solver subclass named "
+                                                "'misnamed'")
 
 
 def test_a_required_package_whose_import_fails_makes_the_solver_unavailable(installed):
