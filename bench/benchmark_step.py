@@ -89,7 +89,7 @@ def run_config(model: Model, state: State, linear: str, threads: int, steps: int
             out = State(state.x, state.v, state.t)
             st = solver.step(state, out, dt)
             walls.append(st.wall_s)
-            iters.append(st.newton_iters)
+            iters.append(st.iterations)
             state = out
     ms = {f"{p}_ms": 1e3 * totals[p] / steps for p in PARTS}
     step_ms = 1e3 * float(np.mean(walls))

@@ -39,10 +39,10 @@ def parse_mesh(ref: str | None) -> MeshSpec | None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    """Print suites (with member counts), catalogue meshes and solvers."""
+    """Print suites (with member counts), catalogue meshes and solvers (an unavailable one with the reason)."""
     from scenarios.meshes import catalogue
     from scenarios.suites import list_suites, load_suite
-    from solvers.registry import solver_names
+    from solvers.registry import solver_names, unavailable
 
     print("suites:")
     for name in list_suites():
@@ -56,7 +56,8 @@ def cmd_list(args: argparse.Namespace) -> int:
         print(f"  {name:8s} {', '.join(res)}")
     print("solvers:")
     for name in solver_names():
-        print(f"  {name}")
+        reason = unavailable(name)
+        print(f"  {name:8s} unavailable: {reason}" if reason else f"  {name}")
     return 0
 
 
@@ -105,13 +106,13 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
     from dataclasses import replace
 
     from bench.runner import REFERENCE, Variant
-    from bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS
+    from bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS, variant_set
     from solvers.registry import solver_names
 
     out = []
     for name in [s for s in (spec or SUITE_DEFAULTS.get(suite or "", DEFAULT)).split(",") if s and s != REFERENCE]:
         if name in VARIANTS:
-            variants = VARIANTS[name]
+            variants = variant_set(name)
         elif name in solver_names():
             variants = [Variant(name)]
         else:
@@ -353,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except ValueError as err:  # checkpoint and plug-in errors name their file and value
-        if type(err).__name__ not in ("CheckpointError", "PluginError", "SolverParameterError"):
+        if type(err).__name__ not in ("CheckpointError", "PluginError", "SolverParameterError", "SolverUnavailable"):
             raise
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -12,6 +12,7 @@ a task carries what its worker needs and returns what it produced (`bench.payloa
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -31,7 +32,7 @@ from scenarios.atomic import write_json_atomic
 from scenarios.meshes import TetMesh, load_mesh
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, TruthSpec, load_suite
-from solvers.registry import entries, register_entries
+from solvers.registry import entries, register_entries, unavailable
 from solvers.trajectory import Trajectory
 
 #: The solver whose runs are the references of the matrix (every other run is compared with its run of the same
@@ -172,12 +173,15 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     is checked by the resource guard first (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts
     its bounds). With `with_truth`, the suite's `[truth]` (changed by `truth_overrides`: tol, depth, integrator,
     named `--truth-*` in errors; a suite without one gets the defaults when overrides are given) builds a ground
-    truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns."""
+    truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns. A variant whose solver
+    is unavailable here is skipped (`available_variants`): a note on stderr and `skipped` in run.json say why, and
+    results.csv has no row for it."""
     from bench.training import prepare_variants
 
     out = Path(out)
     store = RunStore(out / "runs")
     suite = load_suite(suite_name).only(only)
+    variants, skipped = available_variants(variants)
     spec = truth_config(suite, with_truth, truth_overrides)
     guard_resources(suite, variants, allow_large=allow_large or suite.allow_large, truth=spec)
     t0 = time.perf_counter()
@@ -201,12 +205,25 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
                                          "reference": reference, "truth": spec.__dict__ if spec else None,
-                                         "wall_s": time.perf_counter() - t0})
+                                         "skipped": skipped, "wall_s": time.perf_counter() - t0})
     if report:
         from bench.reporting import build_report  # here, not above: the worker processes need no plotting
 
         build_report(out)
     return csv
+
+
+def available_variants(variants: Sequence[Variant]) -> tuple[list[Variant], list[dict]]:
+    """(the variants whose solver is available here, the others as {solver, variant, reason}), each skipped one
+    noted on stderr with the reason (`solvers.registry.unavailable`: a package it requires is missing, or its module
+    does not import)."""
+    reasons = {name: unavailable(name) for name in dict.fromkeys(v.solver for v in variants)}
+    skipped = [{"solver": v.solver, "variant": v.label or v.solver, "reason": reasons[v.solver]}
+               for v in variants if reasons[v.solver] is not None]
+    for s in skipped:
+        print(f"note: skipping variant {s['variant']!r}: solver {s['solver']!r} is unavailable: {s['reason']}",
+              file=sys.stderr)
+    return [v for v in variants if reasons[v.solver] is None], skipped
 
 
 def truth_config(suite, with_truth: bool = True, overrides: dict | None = None) -> TruthSpec | None:

@@ -14,6 +14,8 @@ from typing import Protocol
 
 import numpy as np
 
+from solvers.step_stats import StepStats
+
 #: Round-off allowance of the Armijo test, relative to |E|: a trial point may exceed the sufficient-decrease line by
 #: this much. Larger (1e-12 was tried) lets Newton cycle between the kinks of the penalty and friction laws (their
 #: second derivatives jump) with the energy flat to 1e-12 but the iterate never settling; 1e-14 is a few ulps of the
@@ -54,6 +56,13 @@ class NewtonResult:
     linear_iters: int
     stalls: int
     converged: bool
+
+    def step_stats(self, wall_s: float) -> StepStats:
+        """The step's record (wall time `wall_s` [s]) with the counters `line_search_halvings`, `stalls` and
+        `linear_iters`."""
+        return StepStats(wall_s=wall_s, iterations=self.iters, converged=self.converged, residual=self.residual,
+                         counters={"line_search_halvings": self.halvings, "stalls": self.stalls,
+                                   "linear_iters": self.linear_iters})
 
 
 class NewtonProblem(Protocol):

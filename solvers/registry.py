@@ -3,13 +3,25 @@
 Entries are import paths (`module:Class`), imported on first use, so that torch and taichi load only when a
 reduced solver runs, and so that a worker process can import a solver registered elsewhere (`entries`,
 `register_entries`). The harness never special-cases a solver: it looks it up here by name.
+
+Three sources, later ones winning for a name they share: the solvers an installed package declares in the entry-point
+group `frictionbench.solvers` (`name = "module:Class"` in its `[project.entry-points."frictionbench.solvers"]`,
+read once per process), this repository's own (`_ENTRIES`), and those `register`ed at run time. A solver whose
+module does not import, or which `requires` a package that is not installed or does not import, is unavailable:
+`get_solver` raises `SolverUnavailable` with the reason, which `unavailable` returns.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
+import importlib.util
+from functools import cache
 
 from solvers.contract import Solver
+
+#: The entry-point group through which an installed package registers solvers.
+ENTRY_POINT_GROUP = "frictionbench.solvers"
 
 _ENTRIES: dict[str, str] = {
     "full": "solvers.full.plugin:FullSpace",
@@ -17,6 +29,20 @@ _ENTRIES: dict[str, str] = {
     "pod": "solvers.licrom.plugins:Pod",
     "affine": "solvers.licrom.plugins:Affine",
 }
+
+
+class SolverUnavailable(ValueError):
+    """A registered solver cannot run here: its module does not import, or a package it requires is missing."""
+
+    def __init__(self, name: str, reason: str) -> None:
+        super().__init__(f"solver {name!r} is unavailable: {reason}")
+        self.reason = reason
+
+
+@cache
+def installed() -> dict[str, str]:
+    """Solvers of installed packages (the entry-point group `ENTRY_POINT_GROUP`): name -> import path."""
+    return {ep.name: ep.value for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
 
 
 def register(cls: type[Solver]) -> type[Solver]:
@@ -29,7 +55,7 @@ def register(cls: type[Solver]) -> type[Solver]:
 
 def entries() -> dict[str, str]:
     """Every registered solver: name -> import path (what a worker process needs to register them too)."""
-    return dict(_ENTRIES)
+    return installed() | _ENTRIES
 
 
 def register_entries(paths: dict[str, str]) -> None:
@@ -38,17 +64,49 @@ def register_entries(paths: dict[str, str]) -> None:
 
 
 def solver_names() -> list[str]:
-    """Names of the registered solvers."""
-    return list(_ENTRIES)
+    """Names of the registered solvers (available or not)."""
+    return list(entries())
+
+
+def _requirement_missing(package: str) -> str | None:
+    """Why the package (an import name) cannot be used here: not installed, or its import fails; None if it can."""
+    try:
+        if importlib.util.find_spec(package) is None:
+            return f"needs {package!r}, which is not installed"
+        importlib.import_module(package)
+    except Exception as err:  # a broken installation fails in any way: the solver is unavailable, with why
+        return f"needs {package!r}, whose import fails ({type(err).__name__}: {err})"
+    return None
 
 
 def get_solver(name: str) -> type[Solver]:
-    """The solver class registered as `name`; a clear error lists the known ones."""
+    """The solver class registered as `name`; a clear error lists the known ones. Raises `SolverUnavailable`
+    (with the reason) where its module does not import, its path names no `Solver` subclass of that name (a broken
+    plug-in must not break the others), or a package it `requires` is missing."""
     try:
-        module, _, qualname = _ENTRIES[name].partition(":")
+        path = entries()[name]
     except KeyError:
-        raise ValueError(f"solver = {name!r}: unknown; known solvers: {sorted(_ENTRIES)}") from None
-    obj = importlib.import_module(module)
+        raise ValueError(f"solver = {name!r}: unknown; known solvers: {sorted(entries())}") from None
+    module, _, qualname = path.partition(":")
+    try:
+        obj = importlib.import_module(module)
+    except ImportError as err:
+        raise SolverUnavailable(name, f"its module {module} does not import ({err})") from err
     for part in qualname.split("."):
-        obj = getattr(obj, part)
+        obj = getattr(obj, part, None)
+    if not (isinstance(obj, type) and issubclass(obj, Solver)) or obj.name != name:
+        raise SolverUnavailable(name, f"{path} is not a solvers.contract.Solver subclass named {name!r}")
+    for package in obj.requires:
+        reason = _requirement_missing(package)
+        if reason:
+            raise SolverUnavailable(name, reason)
     return obj
+
+
+def unavailable(name: str) -> str | None:
+    """Why the registered solver `name` cannot run here (`SolverUnavailable`'s reason), or None when it can."""
+    try:
+        get_solver(name)
+    except SolverUnavailable as err:
+        return err.reason
+    return None

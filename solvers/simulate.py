@@ -4,9 +4,9 @@ A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats a
 (`solvers.step_stats`); where its states carry latent coordinates q (every stored frame's, the initial state's
 included), the trajectory stores them. A step that fails (Newton not converged, or a non-finite state) is redone
 from the same start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the
-attempts' iterations and wall time and counts the retries. A step still non-finite after that ends the run: the
-loop raises `Diverged` carrying what was computed so far. Each state a solver returns remembers the one its step
-started from (`State.previous`), so BDF2's history follows the steps actually taken: a retried step restarts it
+attempts' iterations, counters and wall time and counts the retries. A step still non-finite after that ends the
+run: the loop raises `Diverged` carrying what was computed so far. Each state a solver returns remembers the one its
+step started from (`State.previous`), so BDF2's history follows the steps actually taken: a retried step restarts it
 with a backward-Euler half step (`solvers.integrators`).
 """
 
@@ -41,9 +41,8 @@ def _finite(state: State) -> bool:
 def advance(solver: Stepper, state: State, dt: float, depth: int = 0) -> tuple[State, StepStats]:
     """One step of dt [s] from `state`; on failure, two steps of dt/2 from the same start (recursively).
 
-    Returns the end state and one record: its `retries` counts the halvings done, its `newton_iters`,
-    `line_search_halvings`, `stalls` and `wall_s` sum every attempt, `converged` and `residual` are the last
-    sub-step's.
+    Returns the end state and one record: its `retries` counts the halvings done, its `iterations`, `counters` and
+    `wall_s` sum every attempt, `converged` and `residual` are the last sub-step's.
     """
     out = State(state.x, state.v, state.t)
     st = solver.step(state, out, dt)

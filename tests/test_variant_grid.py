@@ -2,7 +2,7 @@
 
 import pytest
 
-from bench.variants import LICROM, VARIANTS, grid
+from bench.variants import LICROM, grid, variant_set
 
 
 def test_a_grid_is_the_cartesian_product_of_declared_parameters() -> None:
@@ -21,4 +21,4 @@ def test_a_grid_over_an_undeclared_parameter_is_refused() -> None:
 
 
 def test_the_rank_sweep_set_is_a_grid() -> None:
-    assert [v.params["r"] for v in VARIANTS["licrom-rank"]] == [12, 24, 48]
+    assert [v.params["r"] for v in variant_set("licrom-rank")] == [12, 24, 48]

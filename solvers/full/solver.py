@@ -230,8 +230,7 @@ class FullSpaceSolver:
         state_out.v = lag.velocity(x)
         state_out.t = state_in.t + dt
         state_out.previous = state_in.without_history()
-        return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
-                         res.linear_iters, res.stalls)
+        return res.step_stats(time.perf_counter() - t0)
 
 
 class _StepProblem:

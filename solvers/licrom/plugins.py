@@ -213,6 +213,7 @@ class Licrom(_Reduced):
     and `cubature_file` (an optimised cubature of the training mesh)."""
 
     name = "licrom"
+    requires = ("torch",)  # the network (imported where it is used; pod and affine run without it)
     parameters = _COMMON | {"r": None, "epochs": 100, "affine": False, "points": 512, "checkpoint": "",
                             "shape": "", "cubature_file": ""}
 

@@ -414,7 +414,7 @@ class ReducedSolver:
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """Advance state_in by dt into state_out (x = X + W q, v = W qdot); returns the step's statistics
-        (`newton_iters` counts the iterations of either scheme; halvings are 0 for the projected gradient)."""
+        (`iterations` counts the iterations of either scheme; its counters are 0 for the projected gradient)."""
         t0 = time.perf_counter()
         if state_in.q is None:
             state_in = self.project(state_in)
@@ -428,8 +428,7 @@ class ReducedSolver:
         out = self.decode(ReducedState(q, (q - st.q_bar) / st.h_eff, latent.t + dt))
         state_out.x, state_out.v, state_out.t, state_out.q, state_out.qdot = out.x, out.v, out.t, out.q, out.qdot
         state_out.previous = state_in.without_history()
-        return StepStats(res.iters, res.residual, res.halvings, res.converged, time.perf_counter() - t0,
-                         stalls=res.stalls)
+        return res.step_stats(time.perf_counter() - t0)
 
 
 class _StepProblem:
