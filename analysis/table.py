@@ -33,15 +33,17 @@ STATUS_COLUMNS: tuple[str, ...] = ("status", "failure")
 TIMING_COLUMNS: tuple[str, ...] = ("setup_s", "train_s", "jit_s", "step_ms_median", "step_ms_p95", "speedup")
 #: Ground truth and frontier (analysis/truth.py, bench/runner.py `collect_rows`): the run's integrator, its error
 #: against the scenario's truth, its cost, its speedup at equal accuracy (or why none), then the truth's own figures
-#: (the same on every row of a scenario) and, on ladder rows, the ladder's integrator. A variant's error against the
-#: truth has three parts: err_time (the full-space run it is compared with, against the truth), pos_rmse_rel (the
-#: reduction, against that run) and err_projection (the truth projected onto its subspace, where it has one).
+#: (the same on every row of a scenario) and, on ladder rows, the ladder's integrator (`ladder`, the name of a
+#: `solvers.integrators` class) and level (`ladder_level`, k of dt / 2^k); both empty on other rows. A variant's
+#: error against the truth has three parts: err_time (the full-space run it is compared with, against the truth),
+#: pos_rmse_rel (the reduction, against that run) and err_projection (the truth projected onto its subspace, where
+#: it has one).
 #: truth_horizon_s: how long the truth meets the ladder's tolerance frame by frame; err_truth_horizon: err_truth
 #: over the frames up to then.
 TRUTH_COLUMNS: tuple[str, ...] = (
     "integrator", "err_truth", "err_truth_horizon", "err_time", "err_projection", "wall_s_per_sim_s",
     "speedup_equal_accuracy", "frontier_note", "truth_certified", "truth_horizon_s",
-    "truth_err_est", "truth_order", "truth_dt", "truth_depth", "truth_integrator", "ladder")
+    "truth_err_est", "truth_order", "truth_dt", "truth_depth", "truth_integrator", "ladder", "ladder_level")
 METRIC_COLUMNS: tuple[str, ...] = STATUS_COLUMNS + METRIC_KEYS + TIMING_COLUMNS + TRUTH_COLUMNS
 
 #: Distribution name -> column of its version in `provenance()`.

@@ -32,6 +32,7 @@ from scenarios.atomic import write_json_atomic
 from scenarios.meshes import TetMesh, load_mesh
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import SuiteMember, TruthSpec, load_suite
+from solvers.integrators import get_integrator
 from solvers.registry import entries, register_entries
 from solvers.trajectory import Trajectory
 
@@ -332,7 +333,7 @@ def truth_columns(ladders: dict[str, Ladder], spec_tol: float) -> tuple[dict, Tr
     truth = next(iter(ladders.values()))
     if not truth.tasks:
         return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
-    est = assess_ladder(truth.differences, spec_tol, truth.integrator)
+    est = assess_ladder(truth.differences, spec_tol, get_integrator(truth.integrator))
     finest = truth.tasks[-1]
     horizon = certified_horizon(*truth.frame_differences, spec_tol) if truth.frame_differences else None
     return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
@@ -414,7 +415,8 @@ def collect_rows(suite, refs: dict[str, Task], resolved, variants: Sequence[Vari
             for k, task in enumerate(ladder.tasks):
                 traj, stats = store.load(task.key)
                 rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
-                                    "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
+                                    "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt,
+                                    "integrator": integrator}
                             | _timing(stats, ref_stats, task.scenario.time.dt) | _metrics(ref, traj, sc, stats)
                             | err_truth(traj))
         for v, params in member_variants(resolved, variants, m):

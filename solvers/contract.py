@@ -2,7 +2,7 @@
 Newton's `solver.step(state_in, state_out, dt)`).
 
 A solver is a `Solver` subclass that declares its `name`, its `parameters` (name -> default; a variant sets
-some of them) and the time `integrators` it implements (`scenarios.model.INTEGRATORS`; backward Euler unless it
+some of them) and the time `integrators` it implements (names in `solvers.integrators`; backward Euler unless it
 says more: a scene asking for another is skipped with the reason), and implements `setup(model)` (untimed: build
 what the run needs on this model) and `step(state_in, state_out, dt) -> StepStats`. Optional: `skip(model)` says why a scene cannot be run, `prepare`
 does offline work once per mesh shape (training, bases, cubature) writing its artefacts into the run's output
@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from solvers.integrators import BackwardEuler
 from solvers.model import Model, State
 from solvers.step_stats import StepStats
 
@@ -38,7 +39,7 @@ class Solver(ABC):
 
     name: ClassVar[str] = ""
     parameters: ClassVar[Mapping[str, Any]] = {}
-    integrators: ClassVar[tuple[str, ...]] = ("backward-euler",)
+    integrators: ClassVar[tuple[str, ...]] = (BackwardEuler.name,)
 
     def __init__(self, device: str = "cpu", **params: Any) -> None:
         unknown = sorted(set(params) - set(self.parameters))
