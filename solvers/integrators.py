@@ -1,6 +1,6 @@
 """The time integrators of the implicit solvers, as incremental potentials (docs/design.md, "Time integration").
 
-An integrator is an object: a `Integrator` subclass with its `name` (what a scenario's `time.integrator` says), its
+An integrator is an object: an `Integrator` subclass with its `name` (what a scenario's `time.integrator` says), its
 formal `order`, the `history` it needs (how many states before the step's start) and its `coefficients` for a step
 of size h after one of size h_prev, registered by name in `INTEGRATORS` (`register`). Every integrator minimises the
 same potential over the end-of-step positions x,
@@ -34,7 +34,6 @@ The registry lives here, with the classes; the scenario loader, in the bottom la
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -91,7 +90,7 @@ ONE_STEP = Coefficients(1.0, 0.0, 1.0, 1.0)
 
 
 @dataclass(frozen=True)
-class Integrator(ABC):
+class Integrator:
     """A time integrator (module docstring): `name` (a scenario's `time.integrator`), formal `order` of accuracy,
     `history` (how many states before the step's start it uses) and, per instance, whether a change of step size
     restarts it (`restart_on_step_change`)."""
@@ -102,9 +101,10 @@ class Integrator(ABC):
 
     restart_on_step_change: bool = True
 
-    @abstractmethod
     def coefficients(self, h: float, h_prev: float | None) -> Coefficients:
-        """The coefficients of a step of h [s] after a step of h_prev [s] (None: no previous state)."""
+        """The coefficients of a step of h [s] after a step of h_prev [s] (None: no previous state); this default
+        is the one-step formula (y_bar = y^n, h_eff = h) of an integrator without history."""
+        return ONE_STEP
 
     def previous(self, state: State, h: float) -> State | None:
         """The state before `state` that a step of h [s] from it uses (`state.previous`), or None: none kept, none
@@ -148,21 +148,15 @@ def get_integrator(name: str) -> Integrator:
 
 
 @register
-@dataclass(frozen=True)
 class BackwardEuler(Integrator):
-    """Backward (implicit) Euler: first order, no history, the paper's integrator."""
+    """Backward (implicit) Euler: first order, no history (the one-step coefficients), the paper's integrator."""
 
     name = "backward-euler"
     order = 1
     history = 0
 
-    def coefficients(self, h: float, h_prev: float | None) -> Coefficients:
-        """y_bar = y^n, h_eff = h, whatever came before."""
-        return ONE_STEP
-
 
 @register
-@dataclass(frozen=True)
 class BDF2(Integrator):
     """The second-order backward differentiation formula in its variable-step form, started by backward Euler."""
 

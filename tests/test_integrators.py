@@ -4,6 +4,8 @@ varying step sizes, and the registry the scenario loader validates `time.integra
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import replace
 from itertools import pairwise
 
@@ -210,3 +212,12 @@ def test_an_unknown_integrator_is_refused_naming_the_field_the_value_and_the_kno
     assert "time.integrator" in str(err.value) and "'rk4'" in str(err.value) and "'bdf2'" in str(err.value)
     with pytest.raises(ValueError, match=r"time.integrator = 'rk4': expected one of \['backward-euler', 'bdf2'\]"):
         get_integrator("rk4")
+
+
+def test_the_scenario_loader_says_so_when_no_integrator_is_registered():
+    """The bottom layer knows the names only from `solvers.integrators`: loading a scenario without it is a clear
+    error, not a scenario that skipped validation."""
+    code = ("import scenarios.load as L\ntry:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n"
+            "    print(e)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "import solvers.integrators" in done.stdout
