@@ -23,6 +23,7 @@ from analysis.transfer import transfer_to_mesh
 from analysis.truth import TruthEstimate, assess_ladder, certified_horizon, wall_s_per_sim_s, with_frontier
 from scenarios.model import MeshSpec, Scenario
 from scenarios.suites import Suite, SuiteMember, TruthSpec
+from solvers.integrators import get_integrator
 from solvers.trajectory import Trajectory
 
 
@@ -71,7 +72,7 @@ def truth_columns(ladders: Mapping[str, LadderRuns], spec_tol: float
     truth = next(iter(ladders.values()))
     if not truth.tasks:
         return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
-    est = assess_ladder(truth.differences, spec_tol, truth.integrator)
+    est = assess_ladder(truth.differences, spec_tol, get_integrator(truth.integrator))
     finest = truth.tasks[-1]
     horizon = certified_horizon(*truth.frame_differences, spec_tol) if truth.frame_differences else None
     return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
@@ -131,7 +132,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             for k, task in enumerate(ladder.tasks):
                 traj, stats = runs.load(task.key)
                 rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
-                                    "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
+                                    "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
                             | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)
                             | err_truth(traj))
         for v, params in runs.member_variants(m):

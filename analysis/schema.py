@@ -200,8 +200,6 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
            source="analysis.rows.truth_columns"),
     Column("ladder", "parameter", unit="text", meaning="on a truth-ladder row: its ladder's integrator", source=_ROWS,
            summary=True),
-    Column("ladder_integrator", "parameter", unit="text", meaning="on a truth-ladder row: its integrator",
-           source=_ROWS),
     Column("ladder_level", "parameter", unit="count", meaning="on a truth-ladder row: its level k (dt / 2^k)",
            source=_ROWS),
     Column("mu", "parameter", meaning="the plane's friction coefficient", source=_ROWS, placed=False),

@@ -23,9 +23,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from analysis.schema import number
+from solvers.integrators import Integrator
 
-#: Formal order of accuracy of each time integrator (the upper clamp of the observed order).
-FORMAL_ORDER: dict[str, int] = {"backward-euler": 1, "bdf2": 2}
 #: Lower clamp of the observed order: a ladder whose differences shrink more slowly than 2^-0.25 per halving (or
 #: not at all) is far from its asymptotic range; its estimate is then d_K / (2^0.25 - 1) = 5.3 d_K.
 MIN_ORDER = 0.25
@@ -75,25 +74,24 @@ def observed_order(d_coarse: float, d_fine: float) -> float:
     return math.log2(d_coarse / d_fine)
 
 
-def richardson(differences: Sequence[float], integrator: str) -> tuple[float | None, float | None, float | None]:
+def richardson(differences: Sequence[float],
+               integrator: Integrator) -> tuple[float | None, float | None, float | None]:
     """(err_est, p, p_observed) of the finest run of a ladder with differences d_1..d_K [fraction of L]:
-    err_est = d_K / (2^p - 1), p = log2(d_{K-1} / d_K) clamped to [MIN_ORDER, the integrator's formal order] (a
+    err_est = d_K / (2^p - 1), p = log2(d_{K-1} / d_K) clamped to [MIN_ORDER, the integrator's formal `order`] (a
     larger observed order is pre-asymptotic luck, a smaller one gives the conservative MIN_ORDER); with one
     difference (two levels) p = TWO_LEVEL_ORDER; with none, nothing is estimated."""
     if not differences:
         return None, None, None
-    if integrator not in FORMAL_ORDER:
-        raise ValueError(f"integrator {integrator!r}: not one of {sorted(FORMAL_ORDER)}")
     d = float(differences[-1])
     if len(differences) == 1:
-        p, observed = min(TWO_LEVEL_ORDER, FORMAL_ORDER[integrator]), None
+        p, observed = min(TWO_LEVEL_ORDER, integrator.order), None
     else:
         observed = observed_order(float(differences[-2]), d)
-        p = min(max(observed, MIN_ORDER), float(FORMAL_ORDER[integrator]))
+        p = min(max(observed, MIN_ORDER), float(integrator.order))
     return d / (2.0 ** p - 1.0), p, observed
 
 
-def assess_ladder(differences: Sequence[float], tol: float, integrator: str) -> TruthEstimate:
+def assess_ladder(differences: Sequence[float], tol: float, integrator: Integrator) -> TruthEstimate:
     """The truth of a finished ladder: its finest level, whether its last difference met `tol`, and the
     Richardson estimate (`richardson`)."""
     est, p, observed = richardson(differences, integrator)

@@ -8,8 +8,10 @@ import sys
 import threading
 from pathlib import Path
 
+import solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
 from scenarios.errors import ScenarioError
 from scenarios.model import MeshSpec, Scenario
+from scenarios.suites import TruthSpec
 
 
 def resolve_scenario(ref: str) -> Scenario:
@@ -296,7 +298,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--truth-tol", type=float, help="the truth ladder's tolerance: stop when two successive runs "
                    "differ by at most this fraction of L (default: the suite's [truth], else 0.005)")
     s.add_argument("--truth-depth", type=int, help="the truth ladder's most halvings of dt (default: the suite's)")
-    s.add_argument("--truth-integrator", help="the truth ladder's time integrator (default: the suite's, else bdf2)")
+    s.add_argument("--truth-integrator", help="the truth ladder's time integrator (default: the suite's, else "
+                   f"{TruthSpec.integrator})")
     _add_baseline_args(s)
     _add_allow_large_arg(s)
     s.set_defaults(func=cmd_run)

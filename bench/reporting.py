@@ -17,17 +17,19 @@ from solvers.trajectory import Trajectory
 
 
 def _truth(rows: pd.DataFrame, store: RunStore) -> tuple[str, Trajectory] | None:
-    """A scenario's ground-truth run, (label, trajectory): its ladder row `ladder-<truth_integrator>-<truth_depth>`
-    when the rows name one and the store holds it, else None."""
-    if not {"truth_integrator", "truth_depth", "run"} <= set(rows) or rows["truth_depth"].isna().all():
+    """A scenario's ground-truth run, (label, trajectory): its ladder row of the truth's integrator and level
+    (`ladder` = truth_integrator, `ladder_level` = truth_depth) when the rows name one and the store holds it, else
+    None."""
+    if (not {"truth_integrator", "truth_depth", "ladder", "ladder_level", "run"} <= set(rows)
+            or rows["truth_depth"].isna().all()):
         return None
     first = rows[rows["truth_depth"].notna()].iloc[0]
-    variant = f"ladder-{first['truth_integrator']}-{int(first['truth_depth'])}"
-    match = rows[(rows["variant"] == variant) & rows["run"].notna()]
+    match = rows[(rows["ladder"] == first["truth_integrator"]) & (rows["ladder_level"] == first["truth_depth"])
+                 & rows["run"].notna()]
     if match.empty or not store.done(match.iloc[0]["run"]):
         return None
     traj, _ = store.load(match.iloc[0]["run"])
-    return (f"truth ({match.iloc[0]['solver']}/{variant})", traj) if traj is not None else None
+    return (f"truth ({match.iloc[0]['solver']}/{match.iloc[0]['variant']})", traj) if traj is not None else None
 
 
 def build_report(out: str | Path, gates_file: str | Path | None = None, max_scenarios: int = 4,

@@ -44,7 +44,8 @@ optional and defaults to the dataclass default unless said otherwise below):
                   there is nothing to measure a clearance from: it defaults to false and a number is an error.
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
     [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
-                  integrator = "backward-euler" (default) | "bdf2"
+                  integrator = a name of `scenarios.model.integrator_names()` (the integrators of
+                  `solvers.integrators`); default TimeSpec.integrator, backward Euler
     [effects]     gravity, elasticity, contact, friction, damping, viscosity (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
@@ -78,8 +79,8 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import ScenarioError, checked_table
-from scenarios.model import (INTEGRATORS, Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
-                             Vec3)
+from scenarios.model import (Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec, Vec3,
+                             integrator_names)
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
             "effects")
@@ -387,8 +388,8 @@ def _time(raw: object) -> TimeSpec:
     if isinstance(frame_every, bool) or not isinstance(frame_every, numbers.Integral) or frame_every < 1:
         raise ScenarioError("time.frame_every", frame_every, "expected an integer >= 1")
     integrator = _string(t.get("integrator", d.integrator), "time.integrator")
-    if integrator not in INTEGRATORS:
-        raise ScenarioError("time.integrator", integrator, f"expected one of {list(INTEGRATORS)}")
+    if integrator not in integrator_names():
+        raise ScenarioError("time.integrator", integrator, f"expected one of {list(integrator_names())}")
     return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every), integrator=integrator)
 
 

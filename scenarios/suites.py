@@ -63,7 +63,7 @@ from typing import Any, Literal
 
 from scenarios.errors import ScenarioError, checked_table
 from scenarios.load import NAME_PART, read_toml, scenario_from_dict
-from scenarios.model import INTEGRATORS, Scenario
+from scenarios.model import Scenario, integrator_names
 
 Split = Literal["train", "test"]
 SPLITS: tuple[Split, ...] = ("train", "test")
@@ -203,12 +203,13 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     if isinstance(depth, bool) or not isinstance(depth, int) or not lo_d <= depth <= hi_d:
         raise ScenarioError(f"{where}{sep}depth", depth, f"expected an integer in [{lo_d}, {hi_d}] (halvings of dt)")
     integrator = t.get("integrator", d.integrator)
-    if integrator not in INTEGRATORS:
-        raise ScenarioError(f"{where}{sep}integrator", integrator, f"expected one of {list(INTEGRATORS)}")
+    names = integrator_names()
+    if integrator not in names:
+        raise ScenarioError(f"{where}{sep}integrator", integrator, f"expected one of {list(names)}")
     ladders = _array(t.get("ladders", []), f"{where}{sep}ladders")
     for i, name in enumerate(ladders):
-        if name not in INTEGRATORS:
-            raise ScenarioError(f"{where}{sep}ladders[{i}]", name, f"expected one of {list(INTEGRATORS)}")
+        if name not in names:
+            raise ScenarioError(f"{where}{sep}ladders[{i}]", name, f"expected one of {list(names)}")
     return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)))
 

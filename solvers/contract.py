@@ -2,7 +2,7 @@
 Newton's `solver.step(state_in, state_out, dt)`).
 
 A solver is a `Solver` subclass that declares its `name`, its `parameters` (name -> default; a variant sets
-some of them) and the time `integrators` it implements (`scenarios.model.INTEGRATORS`; backward Euler unless it
+some of them) and the time `integrators` it implements (names in `solvers.integrators`; backward Euler unless it
 says more: a scene asking for another is skipped with the reason), the packages it `requires` (import names beyond
 the benchmark's own dependencies: without one it is listed as unavailable, and its variants are skipped, with the
 reason; `solvers.registry`), and implements `setup(model)` (untimed: build what the run needs on this model) and
@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from solvers.integrators import BackwardEuler
 from solvers.model import Model, State
 from solvers.step_stats import StepStats
 

@@ -1,40 +1,69 @@
 """The time integrators of the implicit solvers, as incremental potentials (docs/design.md, "Time integration").
 
-Both integrators of `scenarios.model.INTEGRATORS` minimise the same potential over the end-of-step positions x,
+An integrator is an object: an `Integrator` subclass with its `name` (what a scenario's `time.integrator` says), its
+formal `order`, the `history` it needs (how many states before the step's start) and its `coefficients` for a step
+of size h after one of size h_prev, registered by name in `INTEGRATORS` (`register`). Every integrator minimises the
+same potential over the end-of-step positions x,
 
     E(x) = 1/(2 h_eff^2) |x - x_tilde|_M^2 + U(x) + h_eff sum Phi(v(x)),    v(x) = (x - x_bar) / h_eff,
 
 U the elastic, gravity and contact energies, Phi the dissipation potentials (friction, contact damping), and
 x_tilde = x_bar + h_eff v_bar; the end-of-step velocity is v(x^{n+1}). They differ in x_bar, v_bar and the effective
-step h_eff:
+step h_eff (`Coefficients`):
 
 - backward Euler: x_bar = x^n, v_bar = v^n, h_eff = h (first order);
-- BDF2 at a constant step h: x_bar = 4/3 x^n - 1/3 x^{n-1}, v_bar = 4/3 v^n - 1/3 v^{n-1}, h_eff = 2/3 h (second
-  order). It needs the state one step h before the step's start (`State.previous`); without one at that distance (the
-  first step, or the first step after a change of step size) the step is backward Euler. So a step that
-  `solvers.simulate.advance` retries as two half steps after a full one restarts BDF2: the first half step is
-  backward Euler, the second is BDF2 at h/2 on the first, and the next full step is backward Euler again (a half
-  step that follows a half step keeps BDF2: its history is one half step back).
+- BDF2 after a step h_prev, with w = h / h_prev: x_bar = ((1 + w)^2 x^n - w^2 x^{n-1}) / (1 + 2w), v_bar the same of
+  v, h_eff = (1 + w) / (1 + 2w) h (second order for bounded w). At a constant step (w = 1): 4/3 x^n - 1/3 x^{n-1},
+  h_eff = 2/3 h. Without a previous state (the first step) the step is backward Euler.
 
 The formulas hold for any coordinates: vertex positions (the full-space solver) or latent coordinates (the reduced
-solver, whose decoding is linear).
+solver, whose decoding is linear). A solver asks its model's integrator for the history it uses
+(`Integrator.previous`, from `State.previous`) and for the step's constants (`Integrator.lagged`).
+
+Which previous state a step uses is the integrator's `restart_on_step_change`: True (what every run does) uses the
+previous state only where it lies one step h back, so a step that `solvers.simulate.advance` retries as two half
+steps after a full one restarts BDF2: the first half step is backward Euler, the second is BDF2 at h/2 on the first,
+and the next full step is backward Euler again (a half step that follows a half step keeps BDF2: its history is one
+half step back). False uses the previous state at any distance, with the variable-step coefficients: what an
+adaptive step size needs.
+
+The registry lives here, with the classes; the scenario loader, in the bottom layer that may not import solvers
+(pyproject.toml's layer contracts), validates `time.integrator` against the names `register` hands down to it
+(`scenarios.model.register_integrator_name`): one list of names, filled by the classes themselves.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from scenarios.model import INTEGRATORS
-from solvers.model import State
+from scenarios.model import register_integrator_name
 
-#: h_eff / h of BDF2.
-BDF2_BETA = 2.0 / 3.0
+if TYPE_CHECKING:  # solvers.model builds a Model's integrator from this module
+    from solvers.model import State
 
-#: Relative tolerance on the previous state's distance in time for it to count as one step back (the times are sums
-#: of steps: they agree to round-off, while a change of step size is a factor of 2 at least).
+#: Relative tolerance on two step sizes for them to count as equal (the times are sums of steps: a step recomputed
+#: from them agrees to round-off, while a change of step size is a factor of 2 at least).
 _SAME_STEP = 1e-6
+
+
+def same_step(h: float, h_prev: float) -> bool:
+    """Whether steps h and h_prev [s] are one size up to the round-off of times summed from steps."""
+    return abs(h_prev - h) <= _SAME_STEP * h
+
+
+@dataclass(frozen=True)
+class Coefficients:
+    """One step's integrator coefficients in coordinates y: y_bar = (current y^n + previous y^{n-1}) / denominator
+    (the same of the velocities for v_bar) and h_eff = beta h [s]. previous = 0: a one-step formula, which needs no
+    y^{n-1} and has current = denominator = 1 (y_bar = y^n, v_bar = v^n)."""
+
+    current: float
+    previous: float
+    denominator: float
+    beta: float
 
 
 @dataclass(frozen=True)
@@ -56,20 +85,90 @@ class Lagged:
         return (y - self.y_bar) / self.h_eff
 
 
-def previous_step(state: State, dt: float) -> State | None:
-    """`state.previous` if it lies one step dt [s] before `state` (BDF2 can use it), else None."""
-    prev = state.previous
-    if prev is None or abs((state.t - prev.t) - dt) > _SAME_STEP * dt:
-        return None
-    return prev
+#: Backward Euler's coefficients, also every multistep integrator's first step: y_bar = y^n, h_eff = h.
+ONE_STEP = Coefficients(1.0, 0.0, 1.0, 1.0)
 
 
-def lagged(integrator: str, y: np.ndarray, v: np.ndarray, y_prev: np.ndarray | None, v_prev: np.ndarray | None,
-           dt: float) -> Lagged:
-    """The step's constants of `integrator` from the start-of-step coordinates y and velocity v, and the same one step
-    dt [s] before (None: none, the step is then backward Euler)."""
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"time.integrator = {integrator!r}: expected one of {list(INTEGRATORS)}")
-    if integrator == "bdf2" and y_prev is not None and v_prev is not None:
-        return Lagged((4.0 * y - y_prev) / 3.0, (4.0 * v - v_prev) / 3.0, BDF2_BETA * dt)
-    return Lagged(y, v, dt)
+@dataclass(frozen=True)
+class Integrator:
+    """A time integrator (module docstring): `name` (a scenario's `time.integrator`), formal `order` of accuracy,
+    `history` (how many states before the step's start it uses) and, per instance, whether a change of step size
+    restarts it (`restart_on_step_change`)."""
+
+    name: ClassVar[str]
+    order: ClassVar[int]
+    history: ClassVar[int]
+
+    restart_on_step_change: bool = True
+
+    def coefficients(self, h: float, h_prev: float | None) -> Coefficients:
+        """The coefficients of a step of h [s] after a step of h_prev [s] (None: no previous state); this default
+        is the one-step formula (y_bar = y^n, h_eff = h) of an integrator without history."""
+        return ONE_STEP
+
+    def previous(self, state: State, h: float) -> State | None:
+        """The state before `state` that a step of h [s] from it uses (`state.previous`), or None: none kept, none
+        needed (no history), or (with `restart_on_step_change`) not one step h back."""
+        prev = state.previous
+        if self.history == 0 or prev is None:
+            return None
+        if self.restart_on_step_change and not same_step(h, state.t - prev.t):
+            return None
+        return prev
+
+    def lagged(self, y: np.ndarray, v: np.ndarray, h: float,
+               previous: tuple[np.ndarray, np.ndarray, float] | None = None) -> Lagged:
+        """The step's constants from the start-of-step coordinates y and velocity v, a step of h [s], and
+        `previous` = (y, v, step [s] that led to the start) of the state before (None: none)."""
+        c = self.coefficients(h, None if previous is None else previous[2])
+        if c.previous == 0.0:
+            return Lagged(y, v, c.beta * h)
+        y_prev, v_prev, _ = previous
+        return Lagged((c.current * y + c.previous * y_prev) / c.denominator,
+                      (c.current * v + c.previous * v_prev) / c.denominator, c.beta * h)
+
+
+#: The integrators by name (`register`).
+INTEGRATORS: dict[str, type[Integrator]] = {}
+
+
+def register(cls: type[Integrator]) -> type[Integrator]:
+    """Class decorator: make `cls` the integrator of its `name` (here and for the scenario loader)."""
+    INTEGRATORS[cls.name] = cls
+    register_integrator_name(cls.name)
+    return cls
+
+
+def get_integrator(name: str) -> Integrator:
+    """The integrator a scenario's `time.integrator = name` asks for (restarting on a change of step size); a
+    ValueError naming the field and the known names for any other."""
+    if name not in INTEGRATORS:
+        raise ValueError(f"time.integrator = {name!r}: expected one of {list(INTEGRATORS)}")
+    return INTEGRATORS[name]()
+
+
+@register
+class BackwardEuler(Integrator):
+    """Backward (implicit) Euler: first order, no history (the one-step coefficients), the paper's integrator."""
+
+    name = "backward-euler"
+    order = 1
+    history = 0
+
+
+@register
+class BDF2(Integrator):
+    """The second-order backward differentiation formula in its variable-step form, started by backward Euler."""
+
+    name = "bdf2"
+    order = 2
+    history = 1
+
+    def coefficients(self, h: float, h_prev: float | None) -> Coefficients:
+        """With w = h / h_prev: ((1 + w)^2, -w^2) / (1 + 2w) and beta = (1 + w) / (1 + 2w); w is exactly 1 where
+        the two steps are one size (`same_step`), so a constant step computes (4 y^n - y^{n-1}) / 3 and 2/3 h.
+        Backward Euler without a previous step."""
+        if h_prev is None:
+            return ONE_STEP
+        w = 1.0 if same_step(h, h_prev) else h / h_prev
+        return Coefficients((1.0 + w) ** 2, -(w * w), 1.0 + 2.0 * w, (1.0 + w) / (1.0 + 2.0 * w))

@@ -13,6 +13,7 @@ import numpy as np
 
 from scenarios.meshes import TetMesh
 from scenarios.model import Contact, Scenario
+from solvers.integrators import Integrator, get_integrator
 from solvers.physics.contact import auto_penalty_stiffness
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_matrices, snh_parameters
@@ -57,7 +58,8 @@ class Model:
     incremental-potential terms that exist (`inertia` always, then `elasticity`, `gravity`, `contact`, `friction`,
     `damping`, `viscosity`); L: bounding-box diagonal of the rest mesh [m]; viscosity: the Kelvin-Voigt eta [Pa s]
     (0 without material damping; a scenario's damping ratio resolved on this mesh) and damping_ratio the ratio the
-    scenario asked for (None where it gave a viscosity or nothing). `scenario` is the scene it was built from (its
+    scenario asked for (None where it gave a viscosity or nothing); integrator: the time integrator
+    (`solvers.integrators`) the scenario's `time.integrator` names. `scenario` is the scene it was built from (its
     name, time span and initial placement; the physics above is read from the model's own fields).
     """
 
@@ -81,6 +83,7 @@ class Model:
     density: float
     friction: float
     contact: Contact
+    integrator: Integrator
     viscosity: float = 0.0
     damping_ratio: float | None = None
 
@@ -154,6 +157,7 @@ def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
         plane_offset=0.0 if plane is None else float(plane.offset),
         terms=active_terms(scenario), L=float(mesh.bbox_diagonal()), density=float(scenario.material.density),
         friction=0.0 if plane is None else float(plane.friction), contact=scenario.contact,
+        integrator=get_integrator(scenario.time.integrator),
     )
     if not model.has("viscosity"):
         return model

@@ -37,7 +37,7 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     t0 = time.perf_counter()
     model = build_model(scenario, tet_mesh if tet_mesh is not None else load_mesh(mesh or scenario.mesh))
     stepper = get_solver(solver)(device=device, **params)
-    integrator = scenario.time.integrator
+    integrator = model.integrator.name
     reason = (f"time.integrator = {integrator!r}: solver {solver!r} implements {list(stepper.integrators)}"
               if integrator not in stepper.integrators else stepper.skip(model))
     if reason:

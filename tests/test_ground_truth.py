@@ -21,6 +21,7 @@ from bench.variants import DT_HALF
 from bench.store import RunStore
 from scenarios.errors import ScenarioError
 from scenarios.suites import load_suite, suite_from_dict
+from solvers.integrators import BackwardEuler
 
 SUITE = """
 [suite]
@@ -105,7 +106,7 @@ def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp
     trajs = [store.load(key)[0] for key in ladder["run"]]
     assert all(t.n_frames == 5 and (abs(t.t - trajs[0].t) < 1e-12).all() for t in trajs)  # frames line up
     d = [pos_rmse_rel(trajs[0], trajs[1]), pos_rmse_rel(trajs[1], trajs[2])]
-    est, p, _ = richardson(d, "backward-euler")
+    est, p, _ = richardson(d, BackwardEuler())
     assert not ref["truth_certified"] and ref["truth_depth"] == 2 and ref["truth_dt"] == pytest.approx(0.0025)
     assert ref["truth_err_est"] == pytest.approx(est) and ref["truth_order"] == pytest.approx(p)
     assert ref["err_truth"] == pytest.approx(pos_rmse_rel(trajs[2], trajs[0]))
@@ -263,6 +264,11 @@ def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):
     assert ref["truth_integrator"] == "bdf2" and ref["integrator"] == "backward-euler" and ref["truth_depth"] == 2
     bdf2, euler = rows[rows["ladder"] == "bdf2"], rows[rows["ladder"] == "backward-euler"]
     assert len(bdf2) == len(euler) == 3 and (bdf2["integrator"] == "bdf2").all()
+    # the ladder's integrator and level are columns of their own (the label is only a name), empty on other rows
+    assert bdf2["ladder_level"].tolist() == euler["ladder_level"].tolist() == [0, 1, 2]
+    assert rows.loc[rows["ladder"].isna(), "ladder_level"].isna().all() and rows["ladder"].isna().sum() == 1
+    truth = rows[(rows["ladder"] == ref["truth_integrator"]) & (rows["ladder_level"] == ref["truth_depth"])]
+    assert len(truth) == 1 and truth.iloc[0]["err_truth"] == 0.0
     assert ref["run"] not in set(bdf2["run"]) and ref["run"] in set(euler["run"])  # BDF2 at dt is a run of its own
     assert (euler["err_truth"] > 0).all() and bdf2["err_truth"].min() == 0.0  # the truth is the finest BDF2 run
 

@@ -1,19 +1,25 @@
 """Time integrators (solvers.integrators): backward Euler and BDF2 against the closed form of free fall in every
-solver, their observed orders of convergence on a smooth contact-free motion, and BDF2 through a retried step."""
+solver, their observed orders of convergence on a smooth contact-free motion, BDF2 through a retried step and at
+varying step sizes, and the registry the scenario loader validates `time.integrator` against."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import replace
 from itertools import pairwise
 
 import numpy as np
 import pytest
 
-from scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
+from scenarios.errors import ScenarioError
+from scenarios.load import scenario_from_dict
+from scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec, integrator_names
 from solvers.baselines import affine_basis
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
+from solvers.integrators import BDF2, INTEGRATORS, BackwardEuler, get_integrator
 from solvers.licrom.reduced import ReducedSolver
-from solvers.model import build_model, initial_state
+from solvers.model import State, build_model, initial_state
 from solvers.simulate import simulate
 
 from scenes import G
@@ -126,3 +132,92 @@ def test_the_bdf2_variant_set_runs_the_reference_solver_under_bdf2():
     sc = variant.scenario(Scenario(name="x", mesh=MeshSpec("block", "coarse")))
     assert variant.solver == REFERENCE and sc.time.integrator == "bdf2" and sc.time.dt == TimeSpec().dt
     assert variant in parse_variants("full-sweep")
+
+
+def variable_step_final(block, n_pairs: int, restart: bool, duration: float = 0.2) -> np.ndarray:
+    """The spinning block's end positions (n, 3) [m] after n_pairs pairs of steps (h, 1.5 h) filling `duration`
+    (step ratios alternating 1.5 and 1/1.5) under BDF2, restarting at every change of step size or not."""
+    h = duration / (2.5 * n_pairs)
+    model = replace(build_model(spinning_block("bdf2", h, duration), block),
+                    integrator=BDF2(restart_on_step_change=restart))
+    solver = FullSpaceSolver(model, settings=NewtonSettings(tol=1e-9))
+    state = initial_state(model)
+    for dt in [h, 1.5 * h] * n_pairs:
+        out = State(state.x, state.v, state.t)
+        assert solver.step(state, out, dt).converged
+        state = out
+    assert state.t == pytest.approx(duration)
+    return state.x
+
+
+@pytest.mark.parametrize("restart", [False, True])
+def test_variable_step_bdf2_converges_at_second_order(block, restart):
+    """Alternating step ratios 1.5 and 1/1.5, refined by halving: the variable-step coefficients keep BDF2 second
+    order; restarting from backward Euler at every change of step size (what a run does after a retry) is first
+    order, so the variable-step formulas are the ones at work."""
+    orders = observed_orders([variable_step_final(block, n, restart) for n in (4, 8, 16, 32)])
+    if restart:
+        assert orders.max() <= 1.3
+    else:
+        assert orders.min() >= 1.7
+
+
+@pytest.mark.parametrize("w", [1.5, 1.0 / 1.5, 0.5, 3.0])
+def test_the_variable_step_coefficients_are_exact_on_quadratics(w):
+    """Second-order consistency at any step ratio: y(t) = a + b t + c t^2 (and its derivative) satisfies
+    y^{n+1} = y_bar + h_eff y'(t_{n+1}) exactly, with y_bar from y^n, y^{n-1} and v_bar from y'^n, y'^{n-1}."""
+    a, b, c, h = 0.3, -1.2, 2.5, 0.01
+    t_prev, t = 0.1, 0.1 + h / w
+    y, dy = (lambda s: a + b * s + c * s * s), (lambda s: b + 2.0 * c * s)
+    lag = BDF2(restart_on_step_change=False).lagged(np.array([y(t)]), np.array([dy(t)]), h,
+                                                    (np.array([y(t_prev)]), np.array([dy(t_prev)]), t - t_prev))
+    assert lag.velocity(np.array([y(t + h)]))[0] == pytest.approx(dy(t + h), rel=1e-9)
+    assert lag.y_tilde[0] + lag.h_eff ** 2 * 2.0 * c == pytest.approx(y(t + h), rel=1e-12)  # v' = y'' = 2c
+
+
+def test_at_a_constant_step_bdf2_computes_the_constant_step_formulas_bit_for_bit():
+    rng = np.random.default_rng(0)
+    y, v, y_prev, v_prev = rng.normal(size=(4, 10, 3))
+    h = 0.01
+    h_prev = (0.03 - 0.02)  # a step recomputed from summed times: h up to round-off
+    assert h_prev != h
+    lag = BDF2().lagged(y, v, h, (y_prev, v_prev, h_prev))
+    assert np.array_equal(lag.y_bar, (4.0 * y - y_prev) / 3.0) and np.array_equal(lag.v_bar, (4.0 * v - v_prev) / 3.0)
+    assert lag.h_eff == 2.0 / 3.0 * h
+    first = BDF2().lagged(y, v, h)  # no history: backward Euler
+    assert first.y_bar is y and first.v_bar is v and first.h_eff == h
+    assert BackwardEuler().lagged(y, v, h, (y_prev, v_prev, h)).y_bar is y
+
+
+def test_a_run_restarts_bdf2_after_a_change_of_step_size_unless_told_otherwise():
+    prev = State(np.zeros((1, 3)), np.zeros((1, 3)), 0.0)
+    state = State(np.ones((1, 3)), np.ones((1, 3)), 0.01, previous=prev)
+    assert BDF2().previous(state, 0.01) is prev and BDF2().previous(state, 0.005) is None
+    assert BDF2(restart_on_step_change=False).previous(state, 0.005) is prev
+    assert BackwardEuler().previous(state, 0.01) is None  # no history needed
+
+
+def test_every_integrator_is_registered_by_name_with_its_order_and_history(block):
+    assert integrator_names() == tuple(INTEGRATORS) == ("backward-euler", "bdf2")
+    assert [(c.order, c.history) for c in INTEGRATORS.values()] == [(1, 0), (2, 1)]
+    assert all(get_integrator(name).name == name for name in INTEGRATORS)
+    sc = scenario_from_dict({"name": "x", "mesh": {"name": "block", "resolution": "coarse"},
+                             "time": {"integrator": "bdf2"}})
+    assert build_model(sc, block).integrator == BDF2()
+
+
+def test_an_unknown_integrator_is_refused_naming_the_field_the_value_and_the_known_names():
+    with pytest.raises(ScenarioError) as err:
+        scenario_from_dict({"name": "x", "time": {"integrator": "rk4"}})
+    assert "time.integrator" in str(err.value) and "'rk4'" in str(err.value) and "'bdf2'" in str(err.value)
+    with pytest.raises(ValueError, match=r"time.integrator = 'rk4': expected one of \['backward-euler', 'bdf2'\]"):
+        get_integrator("rk4")
+
+
+def test_the_scenario_loader_says_so_when_no_integrator_is_registered():
+    """The bottom layer knows the names only from `solvers.integrators`: loading a scenario without it is a clear
+    error, not a scenario that skipped validation."""
+    code = ("import scenarios.load as L\ntry:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n"
+            "    print(e)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "import solvers.integrators" in done.stdout

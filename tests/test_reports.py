@@ -430,14 +430,14 @@ def test_build_report_shows_the_truth_run_and_errors_against_it(tmp_path: Path, 
     truth = {"truth_certified": True, "truth_err_est": 0.001, "truth_dt": 0.0025, "truth_depth": 2,
              "truth_integrator": "bdf2"}
     rows = []
-    for key, solver, variant, ladder, speed in [("ref", "full", "reference", "", 0.1),
-                                                ("lic", "licrom", "r20", "", 0.09),
-                                                ("l0", "full", "ladder-bdf2-0", "bdf2", 0.1),
-                                                ("l2", "full", "ladder-bdf2-2", "bdf2", 0.11)]:
+    for key, solver, variant, ladder, level, speed in [("ref", "full", "reference", "", None, 0.1),
+                                                       ("lic", "licrom", "r20", "", None, 0.09),
+                                                       ("l0", "full", "ladder-bdf2-0", "bdf2", 0, 0.1),
+                                                       ("l2", "full", "ladder-bdf2-2", "bdf2", 2, 0.11)]:
         traj = sliding(block, speed)
         store.save(key, traj, {})
         rows.append({"scenario": "s", "solver": solver, "variant": variant, "run": key, "ladder": ladder,
-                     "status": "ok", "err_truth": 0.01, "pos_rmse_rel": 0.01, **truth})
+                     "ladder_level": level, "status": "ok", "err_truth": 0.01, "pos_rmse_rel": 0.01, **truth})
     rows.append({"scenario": "t", "solver": "licrom", "variant": "r20", "status": "failed"})  # no stored run
     pd.DataFrame(rows).to_csv(out / "results.csv", index=False)
     (out / "run.json").write_text(json.dumps({"suite": str(suite)}))

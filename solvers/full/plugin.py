@@ -2,20 +2,21 @@
 
 from __future__ import annotations
 
-from scenarios.model import INTEGRATORS
 from solvers.contract import Solver
 from solvers.full.solver import FullSpaceSolver, NewtonSettings
+from solvers.integrators import INTEGRATORS
 from solvers.model import Model, State
 from solvers.step_stats import StepStats
 
 
 class FullSpace(Solver):
-    """Implicit time stepping on every vertex (`solvers.full.solver.FullSpaceSolver`; backward Euler or BDF2, the
-    scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear` solve (`auto`, `direct`,
-    `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter` Newton iterations per attempt."""
+    """Implicit time stepping on every vertex (`solvers.full.solver.FullSpaceSolver`; every integrator of
+    `solvers.integrators`, the scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear`
+    solve (`auto`, `direct`, `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter` Newton iterations per
+    attempt."""
 
     name = "full"
-    integrators = INTEGRATORS
+    integrators = tuple(INTEGRATORS)
     parameters = {"tol": NewtonSettings.tol, "linear": NewtonSettings.linear, "max_iter": NewtonSettings.max_iter}
 
     def setup(self, model: Model) -> None:

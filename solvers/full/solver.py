@@ -1,8 +1,8 @@
 """Full-space implicit time stepping as energy minimisation, solved by Newton's method with warp kernels.
 
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
-the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with BDF2 (the
-scenario's `time.integrator`) h is the effective step h_eff = 2/3 dt and x_hat = x_bar + h_eff v_bar
+the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with a multistep
+integrator (the model's, e.g. BDF2) h is its effective step h_eff (2/3 dt for BDF2) and x_hat = x_bar + h_eff v_bar
 (`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`); an absent
 term launches no kernel. Newton directions come from the projected (PSD) Hessian, assembled into a fixed block-sparse
 pattern, and a backtracking (Armijo) line search on E, in the shared loop of `solvers.newton`; the barrier law also
@@ -22,7 +22,6 @@ import warp.optim.linear as wpl
 import warp.sparse as wps
 
 from solvers.full.assembly import ElementRanges, thread_budget
-from solvers.integrators import lagged, previous_step
 from solvers.linalg import make_factoriser
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, feasible_step, minimise
@@ -80,7 +79,7 @@ class BlockPattern:
 
 
 class FullSpaceSolver:
-    """Newton on the incremental potential of the scenario's integrator, kernels on `device` (`cpu` or `cuda`).
+    """Newton on the incremental potential of the model's integrator, kernels on `device` (`cpu` or `cuda`).
 
     Per step it holds the integrator's constants: warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar
     (with viscosity also strain_bar, the Green strain per tet at x_bar), and the effective step h_eff [s]
@@ -99,7 +98,7 @@ class FullSpaceSolver:
         if linear not in ("direct", "pardiso", "superlu", "cg"):
             raise ValueError(f"solver.linear = {linear!r}: expected 'auto', 'direct', 'pardiso', 'superlu' or 'cg'")
         self.law = model.contact.law
-        self.integrator = model.scenario.time.integrator
+        self.integrator = model.integrator
         self.h_eff = 0.0
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
@@ -205,13 +204,13 @@ class FullSpaceSolver:
                       inputs=[self.x_bar, self.tets, self.Dm_inv, self.strain_bar])
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
-        """Advance state_in by dt into state_out (the scenario's integrator; BDF2 uses state_in.previous when it is
-        one step dt back); returns the step's statistics."""
+        """Advance state_in by dt into state_out (the model's integrator, with the history it takes from
+        state_in.previous, `Integrator.previous`); returns the step's statistics."""
         t0 = time.perf_counter()
         s, m = self.settings, self.model
-        prev = previous_step(state_in, dt)
-        lag = lagged(self.integrator, state_in.x, state_in.v, None if prev is None else prev.x,
-                     None if prev is None else prev.v, dt)
+        prev = self.integrator.previous(state_in, dt)
+        lag = self.integrator.lagged(state_in.x, state_in.v, dt,
+                                     None if prev is None else (prev.x, prev.v, state_in.t - prev.t))
         h = self.h_eff = lag.h_eff
         x_hat = lag.y_tilde
         self.x_hat.assign(x_hat)

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.atomic import write_json_atomic
-from scenarios.model import INTEGRATORS
 from solvers.baselines import affine_basis, pod_basis, project
 from solvers.contract import Solver
+from solvers.integrators import INTEGRATORS
 from solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
 from solvers.licrom.reduced import ReducedSolver
 from solvers.model import Model, State
@@ -62,9 +62,10 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
 class _Reduced(Solver):
     """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
     Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
-    `projected_gradient`), seed. Either integrator (the scenario's `time.integrator`) with either scheme."""
+    `projected_gradient`), seed. Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with
+    either scheme."""
 
-    integrators = INTEGRATORS
+    integrators = tuple(INTEGRATORS)
 
     @abstractmethod
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:

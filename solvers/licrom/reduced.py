@@ -5,10 +5,10 @@ Each step minimises the incremental potential of the full-space solver restricte
 
     E(q) = 1/(2h^2) (q - q_hat)^T M_r (q - q_hat) - g_r . q + sum_c w_c V_c Psi(F_c(q)) + E_contact + D_friction,
 
-with q_hat = q^n + h qdot^n for backward Euler; with BDF2 (the scenario's `time.integrator`), h is the effective
-step h_eff = 2/3 dt and q_hat = q_bar + h_eff qdot_bar, the dissipative terms taking their velocity from the decoded
-x_bar = X + W q_bar (`solvers.integrators`: the formulas hold in latent coordinates, the decoding being linear).
-M_r = W^T M W (lumped M, factorised once), g_r = sum_i m_i W_i^T g, cubature tets
+with q_hat = q^n + h qdot^n for backward Euler; with a multistep integrator (the model's, e.g. BDF2), h is its
+effective step h_eff (2/3 dt for BDF2) and q_hat = q_bar + h_eff qdot_bar, the dissipative terms taking their
+velocity from the decoded x_bar = X + W q_bar (`solvers.integrators`: the formulas hold in latent coordinates, the
+decoding being linear). M_r = W^T M W (lumped M, factorised once), g_r = sum_i m_i W_i^T g, cubature tets
 (c, w_c) whose F_c(q) = F_c(0) + B_c q is linear in q (B_c = dvec F_c/dq constant), and the contact and friction
 laws of solvers/physics at the surface sample points x_p = X_p + W_p q (gradient W_p^T g_p, Hessian
 W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the step, as the full solver does.
@@ -51,7 +51,6 @@ from scipy.linalg import cho_factor, cho_solve, eigh
 
 from solvers.baselines import project
 from solvers.licrom import kernels as K
-from solvers.integrators import lagged, previous_step
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, minimise
@@ -242,7 +241,7 @@ class _SamplePoints:
 
 
 class ReducedSolver:
-    """Implicit time stepping (the scenario's integrator) in the subspace of a basis W (n, 3, r); see the module
+    """Implicit time stepping (the model's integrator) in the subspace of a basis W (n, 3, r); see the module
     docstring.
 
     model: the scene on the mesh W was evaluated on; cubature: (tet ids, weights) or None for every tet (weight
@@ -268,7 +267,7 @@ class ReducedSolver:
         if name is not None:
             self.name = name
         self.law = model.contact.law
-        self.integrator = model.scenario.time.integrator
+        self.integrator = model.integrator
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
         terms = terms_of(model)
         missing = [t.name for t in terms if not isinstance(t, (BodyTerm, PointTerm))]
@@ -335,11 +334,11 @@ class ReducedSolver:
 
     # ----- one time step ----------------------------------------------------------------------------------
     def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None) -> ReducedStep:
-        """Per-step constants of the integrator (BDF2 with `previous`, the latent state one step h before, else
-        backward Euler); the friction normal pressure is lagged from the start of the step."""
+        """Per-step constants of the model's integrator, with `previous` the latent state before (the history
+        `Integrator.previous` picked; None: none); the friction normal pressure is lagged from the start of the step."""
         m, rm = self.model, self.reduced
-        lag = lagged(self.integrator, latent.q, latent.qdot, None if previous is None else previous.q,
-                     None if previous is None else previous.qdot, h)
+        lag = self.integrator.lagged(latent.q, latent.qdot, h, None if previous is None else
+                                     (previous.q, previous.qdot, latent.t - previous.t))
         x_prev = rm.point_positions(latent.q)
         x_bar = x_prev if lag.y_bar is latent.q else rm.point_positions(lag.y_bar)  # backward Euler: q_bar = q^n
         fn = None
@@ -419,7 +418,7 @@ class ReducedSolver:
         if state_in.q is None:
             state_in = self.project(state_in)
         latent = ReducedState(state_in.q, state_in.qdot, state_in.t)
-        prev = previous_step(state_in, dt)
+        prev = self.integrator.previous(state_in, dt)
         st = self._begin(latent, dt, None if prev is None or prev.q is None else
                          ReducedState(prev.q, prev.qdot, prev.t))
         solve = self._newton if self.scheme == "newton" else self._projected_gradient
