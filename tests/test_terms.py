@@ -142,8 +142,8 @@ class PushReduced(LT.BodyEvaluation):
 def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solver):
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Push)
-    monkeypatch.setitem(FT.LAUNCHERS, Push, PushLaunch)
-    monkeypatch.setitem(LT.EVALUATIONS, Push, PushReduced)
+    monkeypatch.setitem(FT.LAUNCHERS.classes, Push, PushLaunch)
+    monkeypatch.setitem(LT.EVALUATIONS.classes, Push, PushReduced)
     # no elasticity: the projected-gradient scheme at alpha = 1 is unstable for the stiff strain modes
     sc = Scenario(name="pushed_fall", mesh=MeshSpec("block", "coarse"), plane=None,
                   time=TimeSpec(dt=0.01, duration=0.1), effects=Effects(elasticity=False))

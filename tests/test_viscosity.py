@@ -141,7 +141,7 @@ def test_reduced_evaluation_matches_the_full_space_reference(box):
     q_bar, q = (x_bar - model.X).ravel(), (x - model.X).ravel()
     st = rs._begin(ReducedState(q_bar, np.zeros_like(q_bar)), 0.01)
     step = _step(model, x_bar)
-    viscous = next(ev for ev in rs.body_terms if isinstance(ev.term, pv.Viscosity))
+    viscous = next(ev for ev in rs.body_evaluations if isinstance(ev.term, pv.Viscosity))
     E, g, H = viscous.reduced(q, st, 2)
     assert E == pytest.approx(VISCOUS.energy(model, step, x), rel=1e-12)
     ref_g = VISCOUS.gradient(model, step, x)

@@ -23,7 +23,7 @@ import warp.optim.linear as wpl
 import warp.sparse as wps
 
 from solvers.full.assembly import ElementRanges, thread_budget
-from solvers.full.terms import launchers
+from solvers.full.terms import LAUNCHERS
 from solvers.integrators import lagged, previous_step
 from solvers.linalg import make_factoriser
 from solvers.model import Model, State
@@ -138,7 +138,7 @@ class FullSpaceSolver:
             self.values = self.A.values
             self.rhs = wp.zeros(model.n, dtype=wp.vec3d, device=d)
             self.dx = wp.zeros(model.n, dtype=wp.vec3d, device=d)
-        self.launchers = launchers(self, self.terms)
+        self.launchers = LAUNCHERS.build(self, self.terms)
 
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
     def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:

@@ -1,5 +1,5 @@
 """The full-space backend's evaluation of the physics terms (`solvers.physics.terms`) with its warp kernels
-(`solvers.full.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@launches(TermClass)`).
+(`solvers.full.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@LAUNCHERS.register(TermClass)`).
 
 A launcher adds its term at positions x into the solver's buffers (mode 0: the energy into `energy_buf`; mode 1:
 the gradient into `grad` and the Hessian's 3x3 blocks into `values`) and keeps what it needs across a step in its
@@ -10,7 +10,6 @@ viscosity's Green strain at x_bar. The solver's arrays x_hat, x_prev and x_bar h
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -21,7 +20,7 @@ from solvers.physics.contact import BarrierContact, ContactDamping, PenaltyConta
 from solvers.physics.friction import Friction
 from solvers.physics.inertia import Gravity, Inertia
 from solvers.physics.material import Elasticity
-from solvers.physics.terms import StepData, Term
+from solvers.physics.terms import StepData, Term, TermTable
 from solvers.physics.viscosity import Viscosity
 
 if TYPE_CHECKING:
@@ -43,25 +42,8 @@ class Launcher(ABC):
         step's effective step h_eff [s]; inertia=False: static equilibrium (no inertia, no rates)."""
 
 
-#: The launcher of each term class.
-LAUNCHERS: dict[type[Term], type[Launcher]] = {}
-
-
-def launches(*term_classes: type[Term]) -> Callable[[type[Launcher]], type[Launcher]]:
-    """Register a launcher class for `term_classes` (class decorator)."""
-    def register(launcher: type[Launcher]) -> type[Launcher]:
-        for term_class in term_classes:
-            LAUNCHERS[term_class] = launcher
-        return launcher
-    return register
-
-
-def launchers(solver: FullSpaceSolver, terms: Sequence[Term]) -> list[Launcher]:
-    """A launcher for each of `terms`, in their order; ValueError for a term without one."""
-    missing = [t.name for t in terms if type(t) not in LAUNCHERS]
-    if missing:
-        raise ValueError(f"terms {missing} have no full-space launcher (solvers.full.terms.LAUNCHERS)")
-    return [LAUNCHERS[type(t)](solver, t) for t in terms]
+#: The launcher of each term class (`LAUNCHERS.build(solver, terms)`: one per term).
+LAUNCHERS: TermTable[Launcher] = TermTable("full-space launcher (solvers.full.terms.LAUNCHERS)")
 
 
 def _scatter_element_blocks(solver: FullSpaceSolver) -> None:
@@ -70,7 +52,7 @@ def _scatter_element_blocks(solver: FullSpaceSolver) -> None:
               inputs=[solver.elem_blocks, solver.blockmap, solver.values])
 
 
-@launches(Inertia)
+@LAUNCHERS.register(Inertia)
 class _Inertia(Launcher):
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         s = self.solver
@@ -79,7 +61,7 @@ class _Inertia(Launcher):
             s.energy_buf, mode])
 
 
-@launches(Gravity)
+@LAUNCHERS.register(Gravity)
 class _Gravity(Launcher):
     def __init__(self, solver: FullSpaceSolver, term: Term) -> None:
         super().__init__(solver, term)
@@ -91,7 +73,7 @@ class _Gravity(Launcher):
             x, s.x_hat, s.mass, 0.0, self.gravity, s.diag, s.grad, s.values, s.energy_buf, mode])
 
 
-@launches(Elasticity)
+@LAUNCHERS.register(Elasticity)
 class _Elasticity(Launcher):
     def __init__(self, solver: FullSpaceSolver, term: Term) -> None:
         super().__init__(solver, term)
@@ -109,7 +91,7 @@ class _Elasticity(Launcher):
             _scatter_element_blocks(s)
 
 
-@launches(Viscosity)
+@LAUNCHERS.register(Viscosity)
 class _Viscosity(Launcher):
     """Keeps the Green strain E(F(x_bar)) per tet (`strain_bar`), fixed within the step, so computed once per step
     (`begin_step`), not per Newton iteration."""
@@ -136,7 +118,7 @@ class _Viscosity(Launcher):
             _scatter_element_blocks(s)
 
 
-@launches(PenaltyContact, ContactDamping)
+@LAUNCHERS.register(PenaltyContact, ContactDamping)
 class _Penalty(Launcher):
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         s, m = self.solver, self.solver.model
@@ -145,7 +127,7 @@ class _Penalty(Launcher):
             s.diag, s.grad, s.values, s.energy_buf, mode])
 
 
-@launches(BarrierContact)
+@LAUNCHERS.register(BarrierContact)
 class _Barrier(Launcher):
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         s, m, c = self.solver, self.solver.model, self.solver.model.contact
@@ -154,7 +136,7 @@ class _Barrier(Launcher):
             s.values, s.energy_buf, mode])
 
 
-@launches(Friction)
+@LAUNCHERS.register(Friction)
 class _Friction(Launcher):
     """Keeps the step's lagged normal pressure per contact point (`fn`, [Pa])."""
 

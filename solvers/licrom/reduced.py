@@ -53,7 +53,7 @@ from solvers.baselines import project
 from solvers.licrom import kernels as K
 from solvers.integrators import lagged, previous_step
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
-from solvers.licrom.terms import body_evaluations
+from solvers.licrom.terms import EVALUATIONS
 from solvers.model import Model, State
 from solvers.newton import Direction, LineSearch, NewtonResult, minimise
 from solvers.physics.inertia import lumped_mass
@@ -271,7 +271,7 @@ class ReducedSolver:
         missing = [t.name for t in self.terms if not isinstance(t, (BodyTerm, PointTerm))]
         if missing:
             raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
-        self.body_terms = body_evaluations(self, [t for t in self.terms if isinstance(t, BodyTerm)])
+        self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
         self.point_terms = [t for t in self.terms if isinstance(t, PointTerm)]
 
     # ----- state mapping ---------------------------------------------------------------------------------
@@ -306,7 +306,7 @@ class ReducedSolver:
         """E(q) [J] of the step's incremental potential (up to a constant): the body terms' reduced energies, then
         the point terms at the sample points."""
         E = 0.0
-        for body in self.body_terms:
+        for body in self.body_evaluations:
             E += body.reduced(q, st, 0)[0]
         if self.point_terms:
             E += self._point_terms(q, st, 0)[0]
@@ -316,7 +316,7 @@ class ReducedSolver:
         """dE/dq (r,) [N] and the PSD-projected d2E/dq2 (r, r) [N/m]."""
         rm = self.reduced
         g, H = np.zeros(rm.r), np.zeros((rm.r, rm.r))
-        for body in self.body_terms:
+        for body in self.body_evaluations:
             _, gt, Ht = body.reduced(q, st, 2)
             g = g + gt
             if Ht is not None:
@@ -365,7 +365,7 @@ class ReducedSolver:
         Wv = rm.W[pts.vertices]
         u, u_hat = (Wv.reshape(-1, rm.r) @ q).reshape(-1, 3), (Wv.reshape(-1, rm.r) @ st.q_hat).reshape(-1, 3)
         grad = np.zeros_like(u)
-        for body in self.body_terms:
+        for body in self.body_evaluations:
             grad += body.sample_gradient(q, st, u, u_hat)
         rhs = Wv.reshape(-1, rm.r).T @ grad.ravel()
         if self.point_terms:

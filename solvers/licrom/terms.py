@@ -1,12 +1,11 @@
 """The reduced backend's evaluation of the body terms (`solvers.physics.terms.BodyTerm`: inertia, gravity,
 elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
-per term class, in the table `EVALUATIONS` (`@evaluates(TermClass)`). The point terms (contact, damping,
+per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). The point terms (contact, damping,
 friction) need no entry: the solver evaluates them at its contact sample points by their `at_points`."""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -14,7 +13,7 @@ import numpy as np
 from solvers.licrom import kernels as K
 from solvers.physics.inertia import Gravity, Inertia
 from solvers.physics.material import Elasticity
-from solvers.physics.terms import Evaluation, Term
+from solvers.physics.terms import Evaluation, Term, TermTable
 from solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
 
 if TYPE_CHECKING:
@@ -38,28 +37,11 @@ class BodyEvaluation(ABC):
         displacements are u and u_hat (k, 3) [m] at q and q_hat."""
 
 
-#: The reduced evaluation of each body term class.
-EVALUATIONS: dict[type[Term], type[BodyEvaluation]] = {}
+#: The reduced evaluation of each body term class (`EVALUATIONS.build(rs, body_terms)`: one per term).
+EVALUATIONS: TermTable[BodyEvaluation] = TermTable("reduced evaluation (solvers.licrom.terms.EVALUATIONS)")
 
 
-def evaluates(*term_classes: type[Term]) -> Callable[[type[BodyEvaluation]], type[BodyEvaluation]]:
-    """Register a body evaluation class for `term_classes` (class decorator)."""
-    def register(evaluation: type[BodyEvaluation]) -> type[BodyEvaluation]:
-        for term_class in term_classes:
-            EVALUATIONS[term_class] = evaluation
-        return evaluation
-    return register
-
-
-def body_evaluations(rs: ReducedSolver, terms: Sequence[Term]) -> list[BodyEvaluation]:
-    """The evaluation of each of the body `terms` on `rs`, in their order; ValueError for a term without one."""
-    missing = [t.name for t in terms if type(t) not in EVALUATIONS]
-    if missing:
-        raise ValueError(f"terms {missing} have no reduced evaluation (solvers.licrom.terms.EVALUATIONS)")
-    return [EVALUATIONS[type(t)](rs, t) for t in terms]
-
-
-@evaluates(Inertia)
+@EVALUATIONS.register(Inertia)
 class _Inertia(BodyEvaluation):
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
         """1/(2 h_eff^2) (q - q_hat)^T M_r (q - q_hat), M_r = W^T M W."""
@@ -72,7 +54,7 @@ class _Inertia(BodyEvaluation):
         return self.rs.samples.weight[:, None] * ((u - u_hat) / st.h_eff**2)
 
 
-@evaluates(Gravity)
+@EVALUATIONS.register(Gravity)
 class _Gravity(BodyEvaluation):
     """Keeps the reduced weight g_r = sum_i m_i W_i^T g (r,) [N]."""
 
@@ -89,7 +71,7 @@ class _Gravity(BodyEvaluation):
         return self.rs.samples.weight[:, None] * -self.rs.model.gravity
 
 
-@evaluates(Elasticity)
+@EVALUATIONS.register(Elasticity)
 class _Elasticity(BodyEvaluation):
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
         """The cubature elastic energy with its gradient and PSD-projected Hessian (`ReducedModel.elastic`)."""
@@ -102,7 +84,7 @@ class _Elasticity(BodyEvaluation):
         return self.rs.samples.forces(rm.wV, P)
 
 
-@evaluates(Viscosity)
+@EVALUATIONS.register(Viscosity)
 class _Viscosity(BodyEvaluation):
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
         """The cubature sum at F_c(q) against F_c(q_bar): energy, gradient B^T (w V P) and Hessian B^T (w V H9) B."""

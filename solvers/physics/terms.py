@@ -20,9 +20,9 @@ from __future__ import annotations
 import importlib
 import pkgutil
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import ClassVar
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar, Generic, TypeVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -168,6 +168,35 @@ def max_feasible_step(terms: Sequence[Term], model: Model, x: np.ndarray, dx: np
     for term in terms:
         alpha = min(alpha, term.max_step(model, x, dx))
     return alpha
+
+
+#: A backend's evaluation class of a term (the values of a `TermTable`).
+Impl = TypeVar("Impl")
+
+
+@dataclass
+class TermTable(Generic[Impl]):
+    """A backend's evaluation class for each term class (`classes`), registered by `@table.register(TermClass)`;
+    `what` names it in errors (e.g. "full-space launcher")."""
+
+    what: str
+    classes: dict[type[Term], type[Impl]] = field(default_factory=dict)
+
+    def register(self, *term_classes: type[Term]) -> Callable[[type[Impl]], type[Impl]]:
+        """Register an evaluation class for `term_classes` (class decorator)."""
+        def add(evaluation: type[Impl]) -> type[Impl]:
+            for term_class in term_classes:
+                self.classes[term_class] = evaluation
+            return evaluation
+        return add
+
+    def build(self, backend: object, terms: Sequence[Term]) -> list[Impl]:
+        """An evaluation `cls(backend, term)` of each of `terms`, in their order; ValueError naming the terms
+        without one."""
+        missing = [t.name for t in terms if type(t) not in self.classes]
+        if missing:
+            raise ValueError(f"terms {missing} have no {self.what}")
+        return [self.classes[type(t)](backend, t) for t in terms]
 
 
 # ----- helpers of the numpy references ---------------------------------------------------------------------------
