@@ -41,8 +41,8 @@ import numpy as np
 
 from scenarios.model import register_integrator_name
 
-if TYPE_CHECKING:  # solvers.model builds a Model's integrator from this module
-    from solvers.model import State
+if TYPE_CHECKING:  # a Model (solvers.scene) holds its integrator from this module
+    from solvers.scene import State
 
 #: Relative tolerance on two step sizes for them to count as equal (the times are sums of steps: a step recomputed
 #: from them agrees to round-off, while a change of step size is a factor of 2 at least).

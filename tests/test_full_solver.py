@@ -13,6 +13,7 @@ from solvers.model import State, build_model, initial_state
 from solvers.physics import contact as pc
 from solvers.physics import friction as pf
 from solvers.physics import material as pm
+from solvers.physics.terms import StepData
 from solvers.simulate import simulate
 
 from scenes import G, com_series, incline
@@ -28,13 +29,11 @@ def test_kernels_match_numpy_reference(block):
     x = x_prev + 0.01 * h * rng.standard_normal(x_prev.shape) - 0.003 * model.plane_normal
     x[:3] += 0.05 * rng.standard_normal((3, 3))  # a few badly deformed (possibly inverted) tets
     state = State(x_prev, rng.standard_normal(x.shape) * 0.1)
-    solver.x_hat.assign(state.x + h * state.v)
-    solver.x_prev.assign(state.x)
-    solver.x_bar.assign(state.x)  # backward Euler
-    solver._lag_normal_pressure(state)
+    p = model.points
+    solver.begin(StepData(state.x + h * state.v, state.x, h, pf.Friction().begin_step(model, state.x[p], state.v[p])))
     solver.x.assign(x)
     solver.gradient_hessian(solver.x, h)
-    c, p = model.scenario.contact, model.points
+    c = model.scenario.contact
     fn = pc.normal_pressure(state.x[p], state.v[p], model.plane_normal, 0.0, c.stiffness, c.damping)
     assert (fn > 0).any()
     mu, lam = model.mu_snh, model.lam_snh

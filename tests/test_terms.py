@@ -1,6 +1,7 @@
 """Physics terms as objects (solvers.physics.terms): each term's numpy reference is consistent (gradient and
-Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, and a term
-registered from a test is picked up by the full-space solver with no other change."""
+Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, the step hooks
+(`begin_step`, `max_step`) give what the solvers used to compute by name, and a term registered from a test with its
+backends' evaluations (`solvers.full.terms`, `solvers.licrom.terms`) is picked up by every solver."""
 
 from __future__ import annotations
 
@@ -12,9 +13,12 @@ import scipy.sparse as sp
 
 from scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
 from solvers.baselines import affine_basis
+from solvers.full import terms as FT
 from solvers.full.solver import FullSpaceSolver
+from solvers.licrom import terms as LT
 from solvers.licrom.reduced import ReducedSolver
 from solvers.model import Model, build_model, initial_state
+from solvers.newton import feasible_step
 from solvers.physics import terms as T
 from solvers.physics.contact import lagged_pressure
 from solvers.simulate import simulate
@@ -79,10 +83,7 @@ def test_term_gradients_and_hessians_match_finite_differences(scene):
 def test_the_sum_of_the_references_is_the_warp_evaluation(scene):
     model, step, x = scene
     solver = FullSpaceSolver(model)
-    solver.x_hat.assign(step.x_hat)
-    solver.x_prev.assign(step.x_prev)
-    solver.x_bar.assign(step.x_bar)
-    solver.fn.assign(step.fn)
+    solver.begin(step)
     solver.x.assign(x)
     E = T.reference_energy(model, step, x)
     assert solver.energy(solver.x, step.h_eff) == pytest.approx(E, rel=1e-12)
@@ -111,27 +112,38 @@ class Push(T.BodyTerm):
     def hessian(self, model, step, x) -> sp.csr_matrix:
         return sp.csr_matrix((3 * model.n, 3 * model.n))
 
-    def launch(self, solver, x, h, mode, inertia) -> None:
+
+
+class PushLaunch(FT.Launcher):
+    """Push on the full-space solver: the gravity kernel with f."""
+
+    def launch(self, x, h, mode, inertia) -> None:
         import warp as wp
 
         from solvers.full import kernels as K
 
-        wp.launch(K.inertia_gravity_kernel, solver.model.n, device=solver.device, inputs=[
-            x, solver.x_hat, solver.mass, 0.0, wp.vec3d(*self.f), solver.diag, solver.grad, solver.values,
-            solver.energy_buf, mode])
+        s = self.solver
+        wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
+            x, s.x_hat, s.mass, 0.0, wp.vec3d(*self.term.f), s.diag, s.grad, s.values, s.energy_buf, mode])
 
-    def reduced(self, rs, q, st, order):
-        f_r = np.einsum("n,nak,a->k", rs.model.mass, rs.reduced.W, self.f)
+
+class PushReduced(LT.BodyEvaluation):
+    """Push in the latent coordinates: -f_r . q with f_r = sum_i m_i W_i^T f."""
+
+    def reduced(self, q, st, order):
+        f_r = np.einsum("n,nak,a->k", self.rs.model.mass, self.rs.reduced.W, self.term.f)
         return -float(f_r @ q), (-f_r if order >= 1 else None), None
 
-    def sample_gradient(self, rs, q, st, u, u_hat):
-        return rs.samples.weight[:, None] * -self.f
+    def sample_gradient(self, q, st, u, u_hat):
+        return self.rs.samples.weight[:, None] * -self.term.f
 
 
 @pytest.mark.parametrize("solver", ["full", "reduced-newton", "reduced-pg"])
 def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solver):
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Push)
+    monkeypatch.setitem(FT.LAUNCHERS.classes, Push, PushLaunch)
+    monkeypatch.setitem(LT.EVALUATIONS.classes, Push, PushReduced)
     # no elasticity: the projected-gradient scheme at alpha = 1 is unstable for the stiff strain modes
     sc = Scenario(name="pushed_fall", mesh=MeshSpec("block", "coarse"), plane=None,
                   time=TimeSpec(dt=0.01, duration=0.1), effects=Effects(elasticity=False))
@@ -149,3 +161,35 @@ def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solv
     assert np.abs(traj.x[:, :, 0] - traj.x[0, :, 0] - 2.0 * drift[:, None]).max() < 1e-10
     assert np.abs(traj.x[:, :, 1] - traj.x[0, :, 1] + G * drift[:, None]).max() < 1e-10
     assert all(s.converged for s in stats)
+
+
+def test_a_term_without_a_backend_evaluation_is_refused_by_name(block, monkeypatch):
+    monkeypatch.setattr(T, "_TERMS", T.all_terms())
+    T.register(Push)
+    model = build_model(PENALTY, block)
+    with pytest.raises(ValueError, match=r"\['push'\] have no full-space launcher"):
+        FullSpaceSolver(model)
+    with pytest.raises(ValueError, match=r"\['push'\] have no reduced evaluation"):
+        ReducedSolver(model, affine_basis(model.X))
+
+
+def test_the_step_hooks_lag_the_pressure_and_cap_the_step(scene):
+    """Friction lags the contact law's pressure (`begin_step`); only the barrier law caps a step (`max_step`), by
+    the feasible-step rule on the contact points' signed distances; the shared rule takes the smallest cap."""
+    model, step, x = scene
+    p, n = model.points, model.plane_normal
+    v = np.random.default_rng(5).standard_normal((p.size, 3))
+    c = model.contact
+    terms = T.terms_of(model)
+    expected = lagged_pressure(c.law, x[p], v, n, model.plane_offset, c.stiffness, model.contact_damping,
+                               c.barrier_stiffness, c.barrier_distance)
+    assert np.array_equal(T.lagged_at_start(terms, model, x[p], v), expected)
+    assert [t.name for t in terms if t.begin_step(model, x[p], v) is not None] == ["friction"]
+    dx = -0.01 * np.ones_like(x[p]) @ np.diag(np.abs(n) + 1.0)  # towards the plane
+    capping = T.step_capping(terms)
+    alpha = T.max_feasible_step(terms, model, x[p], dx)
+    if c.law == "barrier":
+        assert [t.name for t in capping] == ["barrier_contact"]
+        assert alpha == feasible_step(x[p] @ n - model.plane_offset, dx @ n) < 1.0
+    else:
+        assert capping == [] and alpha == 1.0

@@ -104,15 +104,15 @@ def test_warp_kernels_match_numpy_reference(box):
     x_bar, x = _perturbed(model, 7, 0.01), _perturbed(model, 8, 0.01)
     step = _step(model, x_bar, 0.004)
     solver = FullSpaceSolver(model)
-    solver.set_x_bar(x_bar)
-    solver.h_eff = step.h_eff
+    solver.begin(step)
+    viscous = next(la for la in solver.launchers if isinstance(la.term, pv.Viscosity))
     solver.x.assign(x)
     solver.energy_buf.zero_()
-    VISCOUS.launch(solver, solver.x, step.h, 0, True)
+    viscous.launch(solver.x, step.h_eff, 0, True)
     assert float(solver.energy_buf.numpy()[0]) == pytest.approx(VISCOUS.energy(model, step, x), rel=1e-12)
     solver.grad.zero_()
     solver.values.zero_()
-    VISCOUS.launch(solver, solver.x, step.h, 1, True)
+    viscous.launch(solver.x, step.h_eff, 1, True)
     g = VISCOUS.gradient(model, step, x)
     assert np.abs(solver.grad.numpy() - g).max() < 1e-11 * np.abs(g).max()
     H = VISCOUS.hessian(model, step, x).toarray()
@@ -125,9 +125,10 @@ def test_the_threaded_hessian_launch_is_bitwise_the_single_launch():
     mesh = load_mesh(MeshSpec("cheese", "coarse"))
     model = free_body(mesh, Material(viscosity=50.0), Initial(), 0.01, 0.01)
     solver = FullSpaceSolver(model)
-    solver.set_x_bar(_perturbed(model, 11, 0.002))
+    solver.begin(_step(model, _perturbed(model, 11, 0.002)))
+    strain_bar = next(la for la in solver.launchers if isinstance(la.term, pv.Viscosity)).strain_bar
     solver.x.assign(_perturbed(model, 12, 0.002))
-    ins = [solver.x, solver.strain_bar, solver.tets, solver.Dm_inv, solver.vol, model.viscosity / 0.01]
+    ins = [solver.x, strain_bar, solver.tets, solver.Dm_inv, solver.vol, model.viscosity / 0.01]
     assert_ranges_match_one_launch(solver, K.viscous_hessian_kernel, ins, {1: 1, 2: 1, 3: 1, 4: 1, 6: 16})
 
 
@@ -140,7 +141,8 @@ def test_reduced_evaluation_matches_the_full_space_reference(box):
     q_bar, q = (x_bar - model.X).ravel(), (x - model.X).ravel()
     st = rs._begin(ReducedState(q_bar, np.zeros_like(q_bar)), 0.01)
     step = _step(model, x_bar)
-    E, g, H = VISCOUS.reduced(rs, q, st, 2)
+    viscous = next(ev for ev in rs.body_evaluations if isinstance(ev.term, pv.Viscosity))
+    E, g, H = viscous.reduced(q, st, 2)
     assert E == pytest.approx(VISCOUS.energy(model, step, x), rel=1e-12)
     ref_g = VISCOUS.gradient(model, step, x)
     assert np.abs(g - ref_g.ravel()).max() < 1e-11 * np.abs(ref_g).max()
@@ -148,7 +150,7 @@ def test_reduced_evaluation_matches_the_full_space_reference(box):
     assert np.abs(H - ref_H).max() < 1e-10 * np.abs(ref_H).max()
     pts = rs.samples
     u = (x - model.X)[pts.vertices]
-    sample = VISCOUS.sample_gradient(rs, q, st, u, u)
+    sample = viscous.sample_gradient(q, st, u, u)
     assert np.abs(sample - ref_g[pts.vertices]).max() < 1e-11 * np.abs(ref_g).max()
 
 

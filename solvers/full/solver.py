@@ -3,11 +3,12 @@
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
 the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with a multistep
 integrator (the model's, e.g. BDF2) h is its effective step h_eff (2/3 dt for BDF2) and x_hat = x_bar + h_eff v_bar
-(`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`); an absent
-term launches no kernel. Newton directions come from the projected (PSD) Hessian, assembled into a fixed block-sparse
-pattern, and a backtracking (Armijo) line search on E, in the shared loop of `solvers.newton`; the barrier law also
-caps the step so that no contact point crosses the plane. Convergence is measured in velocity units:
-|dx|_inf / h < tol * L [m/s], L the rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
+(`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`), each by
+its launcher (`solvers.full.terms`); an absent term launches no kernel. Newton directions come from the projected
+(PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E, in the
+shared loop of `solvers.newton`; the terms' feasible-step rule (`solvers.step`) caps the step (the barrier law: no
+contact point crosses the plane). Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the
+rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
 """
 
 from __future__ import annotations
@@ -22,11 +23,12 @@ import warp.optim.linear as wpl
 import warp.sparse as wps
 
 from solvers.full.assembly import ElementRanges, thread_budget
+from solvers.full.terms import LAUNCHERS
 from solvers.linalg import make_factoriser
 from solvers.model import Model, State
-from solvers.newton import Direction, LineSearch, feasible_step, minimise
-from solvers.physics.contact import lagged_pressure
-from solvers.physics.terms import terms_of
+from solvers.newton import Direction, LineSearch, minimise
+from solvers.physics.terms import StepData, lagged_at_start, terms_of
+from solvers.step import StepProblem
 from solvers.step_stats import StepStats
 from solvers.warp_runtime import init_warp
 
@@ -81,9 +83,8 @@ class BlockPattern:
 class FullSpaceSolver:
     """Newton on the incremental potential of the model's integrator, kernels on `device` (`cpu` or `cuda`).
 
-    Per step it holds the integrator's constants: warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar
-    (with viscosity also strain_bar, the Green strain per tet at x_bar), and the effective step h_eff [s]
-    (`solvers.integrators`)."""
+    Per step it holds the integrator's positions in warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar
+    (`solvers.integrators`); the terms' launchers (`solvers.full.terms`) hold what else they need of the step."""
 
     name = "full"
 
@@ -97,9 +98,7 @@ class FullSpaceSolver:
             linear = "direct" if self.device.is_cpu else "cg"
         if linear not in ("direct", "pardiso", "superlu", "cg"):
             raise ValueError(f"solver.linear = {linear!r}: expected 'auto', 'direct', 'pardiso', 'superlu' or 'cg'")
-        self.law = model.contact.law
         self.integrator = model.integrator
-        self.h_eff = 0.0
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
         self.terms = terms_of(model)
@@ -123,14 +122,10 @@ class FullSpaceSolver:
         self.x_hat = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_prev = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_bar = wp.zeros(model.n, dtype=wp.vec3d, device=d)
-        self.strain_bar = wp.zeros(model.tets.shape[0], dtype=wp.mat33d, device=d)  # E(F(x_bar)) per tet
         self.grad = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.values = wp.zeros(self.pattern.nnzb, dtype=wp.mat33d, device=d)
         self.elem_blocks = wp.zeros(16 * model.tets.shape[0], dtype=wp.mat33d, device=d)
         self.energy_buf = wp.zeros(1, dtype=wp.float64, device=d)
-        self.fn = wp.zeros(model.points.size, dtype=wp.float64, device=d)
-        self.alpha_snh = 1.0 + 0.75 * model.mu_snh / model.lam_snh
-        self.gravity = wp.vec3d(*(model.gravity if model.has("gravity") else np.zeros(3)))
         if model.plane_normal is not None:
             self.normal = wp.vec3d(*model.plane_normal)
         if self.linear == "cg":
@@ -142,16 +137,17 @@ class FullSpaceSolver:
             self.values = self.A.values
             self.rhs = wp.zeros(model.n, dtype=wp.vec3d, device=d)
             self.dx = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.launchers = LAUNCHERS.build(self, self.terms)
 
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
     def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:
-        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x: each of the
-        model's terms (`solvers.physics.terms`) launches its kernels.
+        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x: the launcher of
+        each of the model's terms (`solvers.full.terms`) launches its kernels.
 
         inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
         """
-        for term in self.terms:
-            term.launch(self, x, h, mode, inertia)
+        for launcher in self.launchers:
+            launcher.launch(x, h, mode, inertia)
 
     def energy(self, x: wp.array, h: float, inertia: bool = True) -> float:
         """E(x) [J] of the current step's incremental potential."""
@@ -178,30 +174,15 @@ class FullSpaceSolver:
                              M=M, use_cuda_graph=False)
         return self.dx.numpy(), int(iters)
 
-    def _max_feasible_step(self, x: np.ndarray, dx: np.ndarray) -> float:
-        """Barrier law: largest alpha <= 1 keeping every contact point strictly above the plane (90% rule)."""
-        if not (self.model.has("contact") and self.law == "barrier"):
-            return 1.0
-        n, p = self.model.plane_normal, self.model.points
-        return feasible_step(x[p] @ n - self.model.plane_offset, dx[p] @ n)
-
     # ----- one time step --------------------------------------------------------------------------------
-    def _lag_normal_pressure(self, state: State) -> None:
-        """Normal pressure at the start of the step (lagged friction, IPC), per contact point [Pa]."""
-        m, c = self.model, self.model.contact
-        fn = lagged_pressure(self.law, state.x[m.points], state.v[m.points], m.plane_normal, m.plane_offset,
-                             c.stiffness, m.contact_damping, c.barrier_stiffness, c.barrier_distance)
-        self.fn.assign(np.ascontiguousarray(fn))
-
-    def set_x_bar(self, x_bar: np.ndarray) -> None:
-        """The step's x_bar (n, 3) [m] and, with viscosity, the Green strain of every tet there (`strain_bar`):
-        fixed within the step, so computed once per step, not per Newton iteration."""
-        self.x_bar.assign(x_bar)
-        if self.model.has("viscosity"):
-            from solvers.full import kernels as K
-
-            wp.launch(K.green_strain_kernel, self.model.tets.shape[0], device=self.device,
-                      inputs=[self.x_bar, self.tets, self.Dm_inv, self.strain_bar])
+    def begin(self, step: StepData) -> None:
+        """Take a step's constants: its positions x_hat, x_prev and x_bar (n, 3) [m] into the solver's arrays, then
+        each term's (`solvers.full.terms.Launcher.begin_step`)."""
+        self.x_hat.assign(step.x_hat)
+        self.x_prev.assign(step.x_prev)
+        self.x_bar.assign(step.x_bar)
+        for launcher in self.launchers:
+            launcher.begin_step(step)
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """Advance state_in by dt into state_out (the model's integrator, with the history it takes from
@@ -211,18 +192,15 @@ class FullSpaceSolver:
         prev = self.integrator.previous(state_in, dt)
         lag = self.integrator.lagged(state_in.x, state_in.v, dt,
                                      None if prev is None else (prev.x, prev.v, state_in.t - prev.t))
-        h = self.h_eff = lag.h_eff
-        x_hat = lag.y_tilde
-        self.x_hat.assign(x_hat)
-        self.x_prev.assign(state_in.x)
-        self.set_x_bar(lag.y_bar)
-        if m.has("friction"):
-            self._lag_normal_pressure(state_in)
-        x = x_hat.copy()
-        if m.has("contact") and self.law == "barrier":
+        h = lag.h_eff
+        fn = lagged_at_start(self.terms, m, state_in.x[m.points], state_in.v[m.points])
+        self.begin(StepData(lag.y_tilde, state_in.x, dt, fn, x_bar=lag.y_bar, h_eff=h))
+        problem = _StepProblem(self, h)
+        x = lag.y_tilde.copy()
+        if problem.capping:
             reach = (lag.y_bar - state_in.x) + h * lag.v_bar  # x_hat - x^n (h v^n exactly for backward Euler)
-            x = state_in.x.copy() + reach * self._max_feasible_step(state_in.x, reach)
-        res = minimise(_StepProblem(self, h), x, s.tol * m.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
+            x = state_in.x.copy() + reach * problem.max_step(state_in.x, reach)
+        res = minimise(problem, x, s.tol * m.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
         x = res.y
         self.x.assign(x)
         state_out.x = x
@@ -232,11 +210,12 @@ class FullSpaceSolver:
         return res.step_stats(time.perf_counter() - t0)
 
 
-class _StepProblem:
-    """One step's incremental potential as a `solvers.newton.NewtonProblem` over the vertex positions (n, 3) [m]:
-    h the time step [s] (1 with inertia=False: static equilibrium, where the step norm is |dx|_inf [m])."""
+class _StepProblem(StepProblem):
+    """One step's incremental potential (`solvers.step.StepProblem`) over the vertex positions (n, 3) [m]: h the
+    time step [s] (1 with inertia=False: static equilibrium, where the step norm is |dx|_inf [m])."""
 
     def __init__(self, solver: FullSpaceSolver, h: float, inertia: bool = True) -> None:
+        super().__init__(solver.model, solver.terms)
         self.solver, self.h, self.inertia = solver, h, inertia
 
     def energy(self, x: np.ndarray) -> float:
@@ -256,9 +235,10 @@ class _StepProblem:
         """|dx|_inf / h [m/s]."""
         return float(np.abs(dx).max()) / self.h
 
-    def max_step(self, x: np.ndarray, dx: np.ndarray) -> float:
-        """The barrier law's feasible-step cap (1 for the penalty law)."""
-        return self.solver._max_feasible_step(x, dx)
+    def contact_points(self, x: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The contact vertices' positions and displacements, (p, 3) [m]."""
+        p = self.model.points
+        return x[p], dx[p]
 
 
 @wp.kernel

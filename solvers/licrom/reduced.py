@@ -52,12 +52,13 @@ from scipy.linalg import cho_factor, cho_solve, eigh
 from solvers.baselines import project
 from solvers.licrom import kernels as K
 from solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
+from solvers.licrom.terms import EVALUATIONS
 from solvers.model import Model, State
-from solvers.newton import Direction, LineSearch, NewtonResult, feasible_step, minimise
-from solvers.physics import contact as pc
+from solvers.newton import Direction, LineSearch, NewtonResult, minimise
 from solvers.physics.inertia import lumped_mass
 from solvers.physics.material import shape_gradients
-from solvers.physics.terms import BodyTerm, PointTerm, terms_of
+from solvers.physics.terms import BodyTerm, PointTerm, lagged_at_start, terms_of
+from solvers.step import StepProblem
 from solvers.step_stats import StepStats
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
@@ -78,18 +79,17 @@ class ReducedState:
 class ReducedModel:
     """Static data of the reduced problem (float64).
 
-    W: (n, 3, r) basis at the mesh vertices [m per unit q]; M_r: (r, r) reduced mass [kg]; gravity_q: (r,)
-    reduced weight g_r [N] (zeros without gravity); cub_ids: (c,) cubature tets; wV: (c,) their weights times
-    volumes w_c V_c [m^3]; F0: (c, 3, 3) rest deformation gradients; B: (c, 9, r) dvec(F_c)/dq; B_sparse: the same
-    as a (9c, r) CSR matrix when sparse enough, else None; points, area: (p,) contact sample vertices and their
-    area weights [m^2]; Xp: (p, 3) their rest positions; Wp: (p, 3, r) the basis there.
+    W: (n, 3, r) basis at the mesh vertices [m per unit q]; M_r: (r, r) reduced mass [kg]; cub_ids: (c,) cubature
+    tets; wV: (c,) their weights times volumes w_c V_c [m^3]; F0: (c, 3, 3) rest deformation gradients; B: (c, 9, r)
+    dvec(F_c)/dq; B_sparse: the same as a (9c, r) CSR matrix when sparse enough, else None; points, area: (p,)
+    contact sample vertices and their area weights [m^2]; Xp: (p, 3) their rest positions; Wp: (p, 3, r) the basis
+    there.
     """
 
     model: Model
     W: np.ndarray
     M_r: np.ndarray
     M_cho: tuple
-    gravity_q: np.ndarray
     cub_ids: np.ndarray
     wV: np.ndarray
     F0: np.ndarray
@@ -118,14 +118,12 @@ class ReducedModel:
             M_cho = cho_factor(M_r)
         except np.linalg.LinAlgError as err:
             raise ValueError("the basis columns are linearly dependent on this mesh (W^T M W is singular)") from err
-        g = model.gravity if model.has("gravity") else np.zeros(3)
         ids, w = all_tets(model) if cubature is None else (np.asarray(c) for c in cubature)
         F0, B = deformation_jacobians(model, W, ids)
         Bf = B.reshape(-1, r)
         sparse = r >= SPARSE_MIN_R and np.count_nonzero(Bf) <= SPARSE_DENSITY * Bf.size
         points, area = _contact_samples(model, contact_samples, seed)
-        return cls(model=model, W=W, M_r=M_r, M_cho=M_cho,
-                   gravity_q=np.einsum("n,nak,a->k", model.mass, W, g), cub_ids=ids.astype(np.int64),
+        return cls(model=model, W=W, M_r=M_r, M_cho=M_cho, cub_ids=ids.astype(np.int64),
                    wV=w * model.vol[ids], F0=F0, B=B,
                    B_sparse=sp.csr_matrix(Bf) if sparse else None, points=points, area=area,
                    Xp=model.X[points], Wp=np.ascontiguousarray(W[points]))
@@ -266,15 +264,14 @@ class ReducedSolver:
         self.armijo, self.max_halvings = armijo, max_halvings
         if name is not None:
             self.name = name
-        self.law = model.contact.law
         self.integrator = model.integrator
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
-        terms = terms_of(model)
-        missing = [t.name for t in terms if not isinstance(t, (BodyTerm, PointTerm))]
+        self.terms = terms_of(model)
+        missing = [t.name for t in self.terms if not isinstance(t, (BodyTerm, PointTerm))]
         if missing:
             raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
-        self.body_terms = [t for t in terms if isinstance(t, BodyTerm)]
-        self.point_terms = [t for t in terms if isinstance(t, PointTerm)]
+        self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
+        self.point_terms = [t for t in self.terms if isinstance(t, PointTerm)]
 
     # ----- state mapping ---------------------------------------------------------------------------------
     def project(self, state: State) -> State:
@@ -308,8 +305,8 @@ class ReducedSolver:
         """E(q) [J] of the step's incremental potential (up to a constant): the body terms' reduced energies, then
         the point terms at the sample points."""
         E = 0.0
-        for term in self.body_terms:
-            E += term.reduced(self, q, st, 0)[0]
+        for body in self.body_evaluations:
+            E += body.reduced(q, st, 0)[0]
         if self.point_terms:
             E += self._point_terms(q, st, 0)[0]
         return E
@@ -318,8 +315,8 @@ class ReducedSolver:
         """dE/dq (r,) [N] and the PSD-projected d2E/dq2 (r, r) [N/m]."""
         rm = self.reduced
         g, H = np.zeros(rm.r), np.zeros((rm.r, rm.r))
-        for term in self.body_terms:
-            _, gt, Ht = term.reduced(self, q, st, 2)
+        for body in self.body_evaluations:
+            _, gt, Ht = body.reduced(q, st, 2)
             g = g + gt
             if Ht is not None:
                 H = H + Ht
@@ -335,39 +332,30 @@ class ReducedSolver:
     # ----- one time step ----------------------------------------------------------------------------------
     def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None) -> ReducedStep:
         """Per-step constants of the model's integrator, with `previous` the latent state before (the history
-        `Integrator.previous` picked; None: none); the friction normal pressure is lagged from the start of the step."""
+        `Integrator.previous` picked; None: none); what the terms lag from the start of the step at the contact points
+        (`Term.begin_step`: friction's normal pressure)."""
         m, rm = self.model, self.reduced
         lag = self.integrator.lagged(latent.q, latent.qdot, h, None if previous is None else
                                      (previous.q, previous.qdot, latent.t - previous.t))
         x_prev = rm.point_positions(latent.q)
         x_bar = x_prev if lag.y_bar is latent.q else rm.point_positions(lag.y_bar)  # backward Euler: q_bar = q^n
-        fn = None
-        if m.has("friction"):
-            c = m.contact
-            v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
-            fn = pc.lagged_pressure(self.law, x_prev, v, m.plane_normal, m.plane_offset, c.stiffness,
-                                    m.contact_damping, c.barrier_stiffness, c.barrier_distance)
+        v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
+        fn = lagged_at_start(self.terms, m, x_prev, v)
         return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, x_prev, x_bar, fn)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
         """|W dq|_inf / h over all mesh vertices [m/s]."""
         return float(np.abs(self.reduced.W.reshape(-1, self.reduced.r) @ dq).max()) / h
 
-    def _max_feasible_step(self, q: np.ndarray, dq: np.ndarray) -> float:
-        """Barrier law: largest alpha <= 1 keeping every contact point strictly above the plane (90% rule)."""
-        if not (self.model.has("contact") and self.law == "barrier"):
-            return 1.0
-        rm, n = self.reduced, self.model.plane_normal
-        phi = rm.point_positions(q) @ n - self.model.plane_offset
-        return feasible_step(phi, (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3) @ n)
-
-    def _initial_guess(self, st: ReducedStep) -> np.ndarray:
-        """q_hat, shortened for the barrier law so that no contact point crosses the plane."""
-        return st.q_prev + self._max_feasible_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
+    @staticmethod
+    def _initial_guess(st: ReducedStep, problem: _StepProblem) -> np.ndarray:
+        """q_hat, shortened by the step's feasible-step rule (the barrier law: no contact point crosses the plane)."""
+        return st.q_prev + problem.max_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
     def _newton(self, st: ReducedStep) -> NewtonResult:
         """Minimise E by the shared Newton loop (`solvers.newton`)."""
-        return minimise(_StepProblem(self, st), self._initial_guess(st), self.tol * self.model.L, self.max_iter,
+        problem = _StepProblem(self, st)
+        return minimise(problem, self._initial_guess(st, problem), self.tol * self.model.L, self.max_iter,
                         LineSearch(self.armijo, self.max_halvings))
 
     def _sample_gradient_rhs(self, q: np.ndarray, st: ReducedStep) -> np.ndarray:
@@ -376,8 +364,8 @@ class ReducedSolver:
         Wv = rm.W[pts.vertices]
         u, u_hat = (Wv.reshape(-1, rm.r) @ q).reshape(-1, 3), (Wv.reshape(-1, rm.r) @ st.q_hat).reshape(-1, 3)
         grad = np.zeros_like(u)
-        for term in self.body_terms:
-            grad += term.sample_gradient(self, q, st, u, u_hat)
+        for body in self.body_evaluations:
+            grad += body.sample_gradient(q, st, u, u_hat)
         rhs = Wv.reshape(-1, rm.r).T @ grad.ravel()
         if self.point_terms:
             rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
@@ -385,13 +373,14 @@ class ReducedSolver:
 
     def _projected_gradient(self, st: ReducedStep) -> NewtonResult:
         """The paper's scheme (no line search: halvings, linear iterations and stalls are 0)."""
-        q = self._initial_guess(st)
+        problem = _StepProblem(self, st)
+        q = self._initial_guess(st, problem)
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
         for it in range(1, self.max_iter + 1):
             rhs = self.alpha * st.h_eff**2 * self._sample_gradient_rhs(q, st)
             dq = -cho_solve(self.samples.S_cho, rhs, check_finite=False)
-            dq *= self._max_feasible_step(q, dq)
+            dq *= problem.max_step(q, dq)
             q = q + dq
             residual = self._velocity_norm(dq, st.h_eff)
             if residual < tol_v:
@@ -430,10 +419,11 @@ class ReducedSolver:
         return res.step_stats(time.perf_counter() - t0)
 
 
-class _StepProblem:
-    """One reduced step as a `solvers.newton.NewtonProblem` over the latent coordinates q (r,)."""
+class _StepProblem(StepProblem):
+    """One reduced step (`solvers.step.StepProblem`) over the latent coordinates q (r,)."""
 
     def __init__(self, solver: ReducedSolver, st: ReducedStep) -> None:
+        super().__init__(solver.model, solver.terms)
         self.solver, self.st = solver, st
 
     def energy(self, q: np.ndarray) -> float:
@@ -450,6 +440,7 @@ class _StepProblem:
         """|W dq|_inf / h_eff over all mesh vertices [m/s]."""
         return self.solver._velocity_norm(dq, self.st.h_eff)
 
-    def max_step(self, q: np.ndarray, dq: np.ndarray) -> float:
-        """The barrier law's feasible-step cap (1 for the penalty law)."""
-        return self.solver._max_feasible_step(q, dq)
+    def contact_points(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The contact sample points X_p + W_p q and their displacements W_p dq, (p, 3) [m]."""
+        rm = self.solver.reduced
+        return rm.point_positions(q), (rm.Wp.reshape(-1, rm.r) @ dq).reshape(-1, 3)

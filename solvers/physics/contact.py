@@ -16,17 +16,11 @@ at a model's contact points.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from solvers.newton import feasible_step
 from solvers.physics.terms import Evaluation, PointTerm, register
-
-if TYPE_CHECKING:
-    import warp as wp
-
-    from solvers.full.solver import FullSpaceSolver
-    from solvers.model import Model
+from solvers.scene import Model
 
 
 #: Penetration scale of the automatic penalty stiffness, as a fraction of the body size L.
@@ -133,29 +127,21 @@ def lagged_pressure(law: str, x, v, normal, offset, ke, kd, kappa, dhat) -> np.n
 
 
 class _Penalty(PointTerm):
-    """The penalty law with stiffness `_ke(model)` and damping `_kd(model)`."""
+    """The penalty law with stiffness `ke(model)` and damping `kd(model)`."""
 
-    def _ke(self, model: Model) -> float:
+    def ke(self, model: Model) -> float:
+        """The stiffness k_e [Pa/m] (0: the damping part alone)."""
         return 0.0
 
-    def _kd(self, model: Model) -> float:
+    def kd(self, model: Model) -> float:
+        """The damping k_d [Pa s/m] (0: the stiffness part alone)."""
         return 0.0
 
     def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
-        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self._ke(model), self._kd(model), h, x_bar)
+        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self.ke(model), self.kd(model), h, x_bar)
         return (penalty_energy(*args), penalty_gradient(*args) if order >= 1 else None,
                 penalty_hessian(*args) if order == 2 else None)
-
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        import warp as wp
-
-        from solvers.full import kernels as K
-
-        m = solver.model
-        wp.launch(K.penalty_contact_kernel, m.points.size, device=solver.device, inputs=[
-            x, solver.x_prev, solver.x_bar, solver.points, solver.area, solver.normal, m.plane_offset, self._ke(m),
-            self._kd(m), h, solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
 
 
 @register
@@ -167,7 +153,7 @@ class PenaltyContact(_Penalty):
     def applies(self, model: Model) -> bool:
         return model.has("contact") and model.contact.law == "penalty"
 
-    def _ke(self, model: Model) -> float:
+    def ke(self, model: Model) -> float:
         return model.contact.stiffness
 
 
@@ -190,15 +176,9 @@ class BarrierContact(PointTerm):
         H = (kA * barrier_d2(phi, dhat))[:, None, None] * np.outer(n, n) if order == 2 else None
         return E, g, H
 
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        import warp as wp
-
-        from solvers.full import kernels as K
-
-        m, c = solver.model, solver.model.contact
-        wp.launch(K.barrier_contact_kernel, m.points.size, device=solver.device, inputs=[
-            x, solver.points, solver.area, solver.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance,
-            solver.diag, solver.grad, solver.values, solver.energy_buf, mode])
+    def max_step(self, model: Model, x: np.ndarray, dx: np.ndarray) -> float:
+        """The barrier is infinite on the plane: no contact point may cross it (`solvers.newton.feasible_step`)."""
+        return feasible_step(signed_distance(x, model.plane_normal, model.plane_offset), dx @ model.plane_normal)
 
 
 @register
@@ -210,5 +190,5 @@ class ContactDamping(_Penalty):
     def applies(self, model: Model) -> bool:
         return model.has("damping")
 
-    def _kd(self, model: Model) -> float:
+    def kd(self, model: Model) -> float:
         return model.contact_damping

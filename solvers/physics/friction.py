@@ -12,17 +12,11 @@ Arrays: x, x_prev (p, 3), area (p,) [m^2], fn (p,) [Pa]; energies J, gradients (
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from solvers.physics.contact import lagged_pressure
 from solvers.physics.terms import Evaluation, PointTerm, register
-
-if TYPE_CHECKING:
-    import warp as wp
-
-    from solvers.full.solver import FullSpaceSolver
-    from solvers.model import Model
+from solvers.scene import Model
 
 
 def f0(s: np.ndarray, eps_v: np.ndarray) -> np.ndarray:
@@ -105,19 +99,15 @@ class Friction(PointTerm):
     def applies(self, model: Model) -> bool:
         return model.has("friction")
 
+    def begin_step(self, model: Model, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The normal pressure of the scene's contact law at the start of the step (`lagged_pressure`) [Pa]."""
+        c = model.contact
+        return lagged_pressure(c.law, x, v, model.plane_normal, model.plane_offset, c.stiffness,
+                               model.contact_damping, c.barrier_stiffness, c.barrier_distance)
+
     def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         """The potential with the integrator's velocity (x - x_bar) / h, h its effective step."""
         args = (x, x_bar, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)
         return (friction_energy(*args), friction_gradient(*args) if order >= 1 else None,
                 friction_hessian(*args) if order == 2 else None)
-
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        import warp as wp
-
-        from solvers.full import kernels as K
-
-        m = solver.model
-        wp.launch(K.friction_kernel, m.points.size, device=solver.device, inputs=[
-            x, solver.x_bar, solver.points, solver.area, solver.fn, solver.normal, m.friction,
-            m.contact.friction_stiffness, h, solver.diag, solver.grad, solver.values, solver.energy_buf, mode])

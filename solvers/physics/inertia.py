@@ -4,19 +4,11 @@ its target x_tilde and effective step h_eff, `solvers.integrators`) and the pote
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.physics.terms import BodyTerm, Evaluation, StepData, register
-
-if TYPE_CHECKING:
-    import warp as wp
-
-    from solvers.full.solver import FullSpaceSolver
-    from solvers.licrom.reduced import ReducedSolver, ReducedStep
-    from solvers.model import Model
+from solvers.physics.terms import BodyTerm, StepData, register
+from solvers.scene import Model
 
 
 def lumped_mass(vol: np.ndarray, tets: np.ndarray, n_vertices: int, density: float) -> np.ndarray:
@@ -65,25 +57,7 @@ class Inertia(BodyTerm):
     def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
         return sp.diags(np.repeat(model.mass, 3) / step.h_eff**2 * step.inertia).tocsr()
 
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        import warp as wp
 
-        from solvers.full import kernels as K
-
-        wp.launch(K.inertia_gravity_kernel, solver.model.n, device=solver.device, inputs=[
-            x, solver.x_hat, solver.mass, 1.0 / h**2 if inertia else 0.0, wp.vec3d(0.0, 0.0, 0.0), solver.diag,
-            solver.grad, solver.values, solver.energy_buf, mode])
-
-    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """1/(2 h_eff^2) (q - q_hat)^T M_r (q - q_hat), M_r = W^T M W."""
-        M_r, d, h = rs.reduced.M_r, q - st.q_hat, st.h_eff
-        E = 0.5 / h**2 * float(d @ M_r @ d)
-        return E, (M_r @ d / h**2 if order >= 1 else None), (M_r / h**2 if order == 2 else None)
-
-    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
-                        u_hat: np.ndarray) -> np.ndarray:
-        """w_i (u_i - u_hat_i) / h_eff^2 with the sample vertices' cubature masses w_i."""
-        return rs.samples.weight[:, None] * ((u - u_hat) / st.h_eff**2)
 
 
 @register
@@ -104,21 +78,4 @@ class Gravity(BodyTerm):
     def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
         return sp.csr_matrix((3 * model.n, 3 * model.n))
 
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        import warp as wp
 
-        from solvers.full import kernels as K
-
-        wp.launch(K.inertia_gravity_kernel, solver.model.n, device=solver.device, inputs=[
-            x, solver.x_hat, solver.mass, 0.0, solver.gravity, solver.diag, solver.grad, solver.values,
-            solver.energy_buf, mode])
-
-    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """-g_r . q with the reduced weight g_r = sum_i m_i W_i^T g."""
-        g_r = rs.reduced.gravity_q
-        return -float(g_r @ q), (-g_r if order >= 1 else None), None
-
-    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
-                        u_hat: np.ndarray) -> np.ndarray:
-        """-w_i g with the sample vertices' cubature masses w_i."""
-        return rs.samples.weight[:, None] * -rs.model.gravity

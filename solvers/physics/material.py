@@ -9,19 +9,11 @@ sum_e V_e Psi(F_e) of the incremental potential.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.physics.terms import BodyTerm, Evaluation, StepData, element_blocks, register
-
-if TYPE_CHECKING:
-    import warp as wp
-
-    from solvers.full.solver import FullSpaceSolver
-    from solvers.licrom.reduced import ReducedSolver, ReducedStep
-    from solvers.model import Model
+from solvers.physics.terms import BodyTerm, StepData, element_blocks, register
+from solvers.scene import Model
 
 
 def lame_parameters(youngs_modulus: float, poisson_ratio: float) -> tuple[float, float]:
@@ -173,33 +165,4 @@ class Elasticity(BodyTerm):
         return element_blocks(model, element_hessians(x, model.tets, model.Dm_inv, model.vol, model.mu_snh,
                                                       model.lam_snh))
 
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        import warp as wp
 
-        from solvers.full import kernels as K
-
-        m, d = solver.model, solver.device
-        ins = [x, solver.tets, solver.Dm_inv, solver.vol, m.mu_snh, m.lam_snh, solver.alpha_snh]
-        if mode == 0:
-            wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.energy_buf])
-        else:
-            wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.grad])
-            solver.elem_blocks.zero_()
-            solver.elements.launch(K.elastic_hessian_kernel, ins + [solver.elem_blocks], {1: 1, 2: 1, 3: 1, 7: 16})
-            wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
-                      inputs=[solver.elem_blocks, solver.blockmap, solver.values])
-
-    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """The cubature elastic energy with its gradient and PSD-projected Hessian (`ReducedModel.elastic`)."""
-        from solvers.licrom import kernels as K
-
-        return rs.reduced.elastic(q, (K.ENERGY, K.STRESS, K.HESSIAN)[order])
-
-    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
-                        u_hat: np.ndarray) -> np.ndarray:
-        """The cubature tets' elastic forces w_c V_c P_c g_a on their vertices."""
-        from solvers.licrom import kernels as K
-
-        m, rm = rs.model, rs.reduced
-        _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
-        return rs.samples.forces(rm.wV, P)

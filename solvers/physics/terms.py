@@ -3,32 +3,31 @@ solvers/physics (inertia and gravity in inertia.py, elasticity in material.py, K
 viscosity.py, penalty contact, barrier contact and contact damping in contact.py, friction in friction.py).
 
 A term holds its pure numpy reference (energy [J], gradient (n, 3) [N], PSD-projected Hessian (3n, 3n) [N/m] over
-the vertex positions x (n, 3) [m]) and its evaluation for each backend: `launch` adds it with the full-space warp
-kernels into a `solvers.full.solver.FullSpaceSolver`'s buffers; for the reduced solver
-(`solvers.licrom.reduced.ReducedSolver`), a body term gives its energy, gradient and Hessian in the latent
-coordinates (`reduced`) and its gradient at the projected-gradient scheme's sample vertices (`sample_gradient`),
-while a `PointTerm` (contact, damping, friction) is evaluated at contact sample points (`at_points`), which the
-reduced solver sums and projects once. `applies(model)` says whether a scene has it; a solver takes
-`terms_of(model)` and loops over them. Adding a term is one module that registers its class here
-(`register`) and is listed in `_MODULES`, plus its tests.
+the vertex positions x (n, 3) [m]) and declares what it needs from a step through two hooks, both on the contact
+points: `begin_step` fixes what the term lags from the start of the step (friction: the normal pressure), and
+`max_step` caps a Newton step (the barrier law: no point may cross the plane; `max_feasible_step` is the one rule
+both solvers apply). A `PointTerm` (contact, damping, friction) is pure maths at any sample points (`at_points`).
+The physics knows no backend: each backend implements the evaluation of the terms in its own package, in a table
+keyed by the term's class (`solvers.full.terms` with the warp kernels, `solvers.licrom.terms` with the reduced
+evaluations of the body terms; the reduced solver sums the point terms' `at_points` itself).
+`applies(model)` says whether a scene has a term; a solver takes `terms_of(model)` and loops over them. A term is
+a class registered here by `@register` in a module of solvers/physics (every module of the package is imported;
+`_MODULES` gives the summation order of the built-in ones).
 """
 
 from __future__ import annotations
 
 import importlib
+import pkgutil
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar, Generic, TypeVar
 
 import numpy as np
 import scipy.sparse as sp
 
-if TYPE_CHECKING:
-    import warp as wp
-
-    from solvers.full.solver import FullSpaceSolver
-    from solvers.licrom.reduced import ReducedSolver, ReducedStep
-    from solvers.model import Model
+from solvers.scene import Model
 
 
 #: Energy [J], gradient and Hessian of a term (None where not asked for).
@@ -85,26 +84,21 @@ class Term(ABC):
     def hessian(self, model: Model, step: StepData, x: np.ndarray) -> sp.csr_matrix:
         """Its PSD-projected Hessian (3n, 3n) [N/m] (numpy reference)."""
 
-    @abstractmethod
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        """Add the term at x with the full-space kernels: mode 0 its energy into solver.energy_buf, mode 1 its
-        gradient into solver.grad and Hessian blocks into solver.values. h is the step's effective step h_eff [s]
-        (the solver's arrays x_hat, x_prev and x_bar hold the step's other constants)."""
+    def begin_step(self, model: Model, x: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+        """What the term lags from the start of a step, given the contact points' positions x (p, 3) [m] and
+        velocities v (p, 3) [m/s] there: friction's normal pressure (p,) [Pa] (`StepData.fn`); None (the default):
+        nothing."""
+        return None
+
+    def max_step(self, model: Model, x: np.ndarray, dx: np.ndarray) -> float:
+        """The largest alpha <= 1 for which the contact points x + alpha dx (p, 3) [m] stay admissible; 1 (the
+        default): the term does not cap a step."""
+        return 1.0
 
 
 class BodyTerm(Term):
-    """A term over the whole body (inertia, gravity, elasticity): its reduced evaluations."""
-
-    @abstractmethod
-    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """Energy [J], gradient (r,) [N] (order >= 1) and Hessian (r, r) [N/m] (order 2, None where it is zero)
-        at latent coordinates q (r,), with the reduced step's constants st."""
-
-    @abstractmethod
-    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
-                        u_hat: np.ndarray) -> np.ndarray:
-        """The full-space gradient (k, 3) [N] at the projected-gradient scheme's sample vertices, whose
-        displacements are u and u_hat (k, 3) [m] at q and q_hat."""
+    """A term over the whole body (inertia, gravity, elasticity, viscosity): each backend evaluates it by its own
+    table (`solvers.full.terms`, `solvers.licrom.terms`)."""
 
 
 class PointTerm(Term):
@@ -138,10 +132,10 @@ def register(term_class: type[Term]) -> type[Term]:
 
 
 def all_terms() -> list[Term]:
-    """Every registered term, in summation order: by module in the order of `_MODULES` (terms of other modules
-    last), then in registration order within a module."""
-    for module in _MODULES:
-        importlib.import_module(module)
+    """Every registered term, in summation order: by module in the order of `_MODULES` (terms of the package's
+    other modules, and of modules outside it, last), then in registration order within a module."""
+    for info in pkgutil.iter_modules(importlib.import_module(__package__).__path__):
+        importlib.import_module(f"{__package__}.{info.name}")
     rank = {m: k for k, m in enumerate(_MODULES)}
     return sorted(_TERMS, key=lambda t: rank.get(type(t).__module__, len(_MODULES)))
 
@@ -149,6 +143,60 @@ def all_terms() -> list[Term]:
 def terms_of(model: Model) -> list[Term]:
     """The terms `model`'s scene contains, in summation order."""
     return [t for t in all_terms() if t.applies(model)]
+
+
+def lagged_at_start(terms: Sequence[Term], model: Model, x: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """The step's lagged normal pressure (p,) [Pa] (`StepData.fn`) from the terms' `begin_step` at the contact
+    points' start-of-step positions x and velocities v (p, 3); None where no term lags it."""
+    fn = None
+    for term in terms:
+        lag = term.begin_step(model, x, v)
+        if lag is not None:
+            fn = lag
+    return fn
+
+
+def step_capping(terms: Sequence[Term]) -> list[Term]:
+    """The terms that cap a Newton step (those that override `Term.max_step`)."""
+    return [t for t in terms if type(t).max_step is not Term.max_step]
+
+
+def max_feasible_step(terms: Sequence[Term], model: Model, x: np.ndarray, dx: np.ndarray) -> float:
+    """The one feasible-step rule of every solver: the largest alpha <= 1 that every term allows for the contact
+    points x + alpha dx (p, 3) [m] (`Term.max_step`)."""
+    alpha = 1.0
+    for term in terms:
+        alpha = min(alpha, term.max_step(model, x, dx))
+    return alpha
+
+
+#: A backend's evaluation class of a term (the values of a `TermTable`).
+Impl = TypeVar("Impl")
+
+
+@dataclass
+class TermTable(Generic[Impl]):
+    """A backend's evaluation class for each term class (`classes`), registered by `@table.register(TermClass)`;
+    `what` names it in errors (e.g. "full-space launcher")."""
+
+    what: str
+    classes: dict[type[Term], type[Impl]] = field(default_factory=dict)
+
+    def register(self, *term_classes: type[Term]) -> Callable[[type[Impl]], type[Impl]]:
+        """Register an evaluation class for `term_classes` (class decorator)."""
+        def add(evaluation: type[Impl]) -> type[Impl]:
+            for term_class in term_classes:
+                self.classes[term_class] = evaluation
+            return evaluation
+        return add
+
+    def build(self, backend: object, terms: Sequence[Term]) -> list[Impl]:
+        """An evaluation `cls(backend, term)` of each of `terms`, in their order; ValueError naming the terms
+        without one."""
+        missing = [t.name for t in terms if type(t) not in self.classes]
+        if missing:
+            raise ValueError(f"terms {missing} have no {self.what}")
+        return [self.classes[type(t)](backend, t) for t in terms]
 
 
 # ----- helpers of the numpy references ---------------------------------------------------------------------------

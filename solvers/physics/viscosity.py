@@ -20,22 +20,14 @@ unit eta and unit h_eff (the damping matrix per unit viscosity: C = eta D_1).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from solvers.physics.material import (deformation_gradient, element_hessians, nodal_forces, project_psd,
                                       pulled_back)
-from solvers.physics.terms import BodyTerm, Evaluation, StepData, element_blocks, register
-
-if TYPE_CHECKING:
-    import warp as wp
-
-    from solvers.full.solver import FullSpaceSolver
-    from solvers.licrom.reduced import ReducedSolver, ReducedStep
-    from solvers.model import Model
+from solvers.physics.terms import BodyTerm, StepData, element_blocks, register
+from solvers.scene import Model
 
 #: Eigenvalues within this relative distance of omega_1^2 belong to the first mode's eigenspace (a symmetric mesh
 #: has degenerate modes); a rigid mode's eigenvalue is below this fraction of omega_1^2.
@@ -160,40 +152,3 @@ class Viscosity(BodyTerm):
             return sp.csr_matrix((3 * model.n, 3 * model.n))
         return element_blocks(model, viscous_element_hessians(x, step.x_bar, model.tets, model.Dm_inv, model.vol,
                                                               model.viscosity / step.h_eff))
-
-    def launch(self, solver: FullSpaceSolver, x: wp.array, h: float, mode: int, inertia: bool) -> None:
-        """The step's E(F_bar) and h_eff are the solver's (`FullSpaceSolver.strain_bar`, computed once per step
-        from x_bar, and `h_eff`)."""
-        if not inertia:
-            return
-        import warp as wp
-
-        from solvers.full import kernels as K
-
-        m, d = solver.model, solver.device
-        ins = [x, solver.strain_bar, solver.tets, solver.Dm_inv, solver.vol, m.viscosity / solver.h_eff]
-        if mode == 0:
-            wp.launch(K.viscous_energy_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.energy_buf])
-        else:
-            wp.launch(K.viscous_gradient_kernel, m.tets.shape[0], device=d, inputs=ins + [solver.grad])
-            solver.elements.launch(K.viscous_hessian_kernel, ins + [solver.elem_blocks],
-                                   {1: 1, 2: 1, 3: 1, 4: 1, 6: 16})
-            wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=d,
-                      inputs=[solver.elem_blocks, solver.blockmap, solver.values])
-
-    def reduced(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """The cubature sum at F_c(q) against F_c(q_bar): energy, gradient B^T (w V P) and Hessian B^T (w V H9) B."""
-        rm, c = rs.reduced, rs.model.viscosity / st.h_eff
-        F, F_bar = rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar)
-        E = float(rm.wV @ viscous_density(F, F_bar, c))
-        if order == 0:
-            return E, None, None
-        return (E,) + rm.pull_back(viscous_stress(F, F_bar, c), viscous_dpdf(F, F_bar, c) if order == 2 else None)
-
-    def sample_gradient(self, rs: ReducedSolver, q: np.ndarray, st: ReducedStep, u: np.ndarray,
-                        u_hat: np.ndarray) -> np.ndarray:
-        """The cubature tets' viscous forces w_c V_c P_c g_a on their vertices."""
-        rm = rs.reduced
-        P = viscous_stress(rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar),
-                           rs.model.viscosity / st.h_eff)
-        return rs.samples.forces(rm.wV, P)
