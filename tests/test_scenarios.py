@@ -19,6 +19,8 @@ from scenarios.load import load_scenario, scenario_from_dict, scenario_hash, sce
 from scenarios.model import Effects
 from scenarios.suites import list_suites, load_suite, suite_from_dict
 
+from scenes import mu_axis, suite_tables, write_toml
+
 # The catalogue contract of scenarios.meshes (names -> resolutions); the loader is tested against it alone.
 CATALOGUE = {
     "cheese": ("coarse", "medium", "fine", "coarse_alt", "medium_alt"),
@@ -490,8 +492,7 @@ def test_suite_axis_can_remove_the_plane() -> None:
 
 
 def test_load_suite_by_path(tmp_path: Path) -> None:
-    (tmp_path / "mine.toml").write_text(
-        '[suite]\nname = "mine"\n[[axis]]\nname = "mu"\nfield = "plane.friction"\nvalues = [0.2, 0.4]\n')
+    write_toml(tmp_path / "mine.toml", suite_tables("mine", None, mu_axis(0.2, 0.4)))
     assert [m.scenario.name for m in load_suite(tmp_path / "mine.toml").scenarios] == ["mine/mu0.2", "mine/mu0.4"]
 
 
@@ -520,9 +521,8 @@ def test_bad_suite_is_named(path: str, value: object, field: str) -> None:
 
 
 def test_bad_member_names_suite_file_and_member(tmp_path: Path) -> None:
-    path = tmp_path / "s.toml"
-    path.write_text('[suite]\nname = "s"\n[base.material]\npoisson_ratio = 0.3\n'
-                    '[[axis]]\nname = "nu"\nfield = "material.poisson_ratio"\nvalues = [0.3, 0.5]\n')
+    nu = {"name": "nu", "field": "material.poisson_ratio", "values": [0.3, 0.5]}
+    path = write_toml(tmp_path / "s.toml", suite_tables("s", {"material": {"poisson_ratio": 0.3}}, nu))
     with pytest.raises(ScenarioError) as info:
         load_suite(path)
     assert info.value.field == "material.poisson_ratio"
