@@ -30,6 +30,8 @@ from scenarios.suites import load_suite
 from solvers.trajectory import Trajectory
 from solvers.warp_runtime import cache_root
 
+from scenes import block_drop, mu_axis, suite_tables, write_toml
+
 pytestmark = pytest.mark.cluster
 
 REPO = Path(__file__).resolve().parents[1]
@@ -181,27 +183,8 @@ def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
     pd.testing.assert_frame_equal(remote[compared], local[compared])
 
 
-KILL_SUITE = """
-[suite]
-name = "kill"
-description = "four block drops of a few seconds each"
-
-[base.mesh]
-name = "block"
-resolution = "coarse"
-
-[base.initial]
-clearance = 0.01
-
-[base.time]
-dt = 0.01
-duration = 6.0
-
-[[axis]]
-name = "mu"
-field = "plane.friction"
-values = [0.1, 0.2, 0.3, 0.4]
-"""
+KILL_SUITE = suite_tables("kill", block_drop(duration=6.0), mu_axis(0.1, 0.2, 0.3, 0.4),
+                          description="four block drops of a few seconds each")
 
 
 def test_a_worker_killed_mid_task_costs_only_that_task(tmp_path, cluster):
@@ -209,8 +192,7 @@ def test_a_worker_killed_mid_task_costs_only_that_task(tmp_path, cluster):
     computed to completion once, and a rerun computes nothing."""
     from dask.distributed import Client
 
-    suite_file = tmp_path / "kill.toml"
-    suite_file.write_text(KILL_SUITE)
+    suite_file = write_toml(tmp_path / "kill.toml", KILL_SUITE)
     tasks = [Task(m.scenario, "full", {}) for m in load_suite(str(suite_file)).scenarios]
     store = RunStore(tmp_path / "out" / "runs")
     c = cluster(2)

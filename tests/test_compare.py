@@ -19,6 +19,8 @@ from bench.runner import run_suite
 from reports.browser_check import check_report
 from reports.html import comparison_section
 
+from scenes import block_drop, mu_axis, suite_tables, write_toml
+
 GATES = load_gates(None)
 
 
@@ -156,10 +158,7 @@ def test_the_report_section_escapes_every_text():
 def test_report_and_compare_on_real_runs(tmp_path: Path):
     """A tiny suite run, then a baseline with a planted better figure: the report gets the comparison section and
     `compare` fails; against an identical copy it passes."""
-    suite = tmp_path / "tiny.toml"
-    suite.write_text('[suite]\nname = "tiny"\n[base.mesh]\nname = "block"\nresolution = "coarse"\n'
-                     '[base.initial]\nclearance = 0.01\n[base.time]\ndt = 0.01\nduration = 0.03\n'
-                     '[[axis]]\nname = "mu"\nfield = "plane.friction"\nvalues = [0.3]\n')
+    suite = write_toml(tmp_path / "tiny.toml", suite_tables("tiny", block_drop(duration=0.03), mu_axis(0.3)))
     out = tmp_path / "out"
     run_suite(str(suite), out, variants=[], jobs=1)
     same = tmp_path / "same"

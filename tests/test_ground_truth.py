@@ -23,37 +23,15 @@ from scenarios.errors import ScenarioError
 from scenarios.suites import load_suite, suite_from_dict
 from solvers.integrators import BackwardEuler
 
-SUITE = """
-[suite]
-name = "ladder"
-description = "one short block drop"
+from scenes import block_drop, mu_axis, suite_tables, write_toml
 
-[base.mesh]
-name = "block"
-resolution = "coarse"
-
-[base.initial]
-clearance = 0.005
-
-[base.time]
-dt = 0.01
-duration = 0.04
-
-[[axis]]
-name = "mu"
-field = "plane.friction"
-values = [0.3]
-
-[truth]
-tol = 1e-6
-depth = 2
-integrator = "backward-euler"
-"""
+SUITE = suite_tables("ladder", block_drop(clearance=0.005, duration=0.04), mu_axis(0.3),
+                     description="one short block drop",
+                     truth={"tol": 1e-6, "depth": 2, "integrator": "backward-euler"})
 
 
 def _suite_dict(**truth) -> dict:
-    return {"suite": {"name": "s"}, "base": {"mesh": {"name": "block", "resolution": "coarse"}},
-            "axis": [{"name": "mu", "field": "plane.friction", "values": [0.3]}], "truth": truth}
+    return suite_tables("s", block_drop(clearance=None, dt=None, duration=None), mu_axis(0.3), truth=truth)
 
 
 def test_the_truth_table_has_defaults_and_validated_fields():
@@ -77,8 +55,7 @@ def test_a_bad_truth_table_is_refused_naming_the_field_and_value(truth, field, v
 
 
 def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):
-    suite = tmp_path / "ladder.toml"
-    suite.write_text(SUITE)
+    suite = write_toml(tmp_path / "ladder.toml", SUITE)
     out = tmp_path / "out"
     assert main(["run", "--suite", str(suite), "--solvers", "full", "--truth-depth", "40", "--out", str(out)]) == 2
     assert "--truth-depth = 40" in capsys.readouterr().err
@@ -90,7 +67,7 @@ def _ladder(tmp_path: Path, variants=(), **options) -> pd.DataFrame:
     (`run_suite`'s `options`); a second call resumes from the stored runs."""
     suite = tmp_path / "ladder.toml"
     if not suite.exists():
-        suite.write_text(SUITE)
+        write_toml(suite, SUITE)
     return pd.read_csv(run_suite(str(suite), tmp_path / "out", variants=list(variants), report=False, **options))
 
 
@@ -257,8 +234,8 @@ def test_paper_damped_is_the_papers_matrix_with_material_damping():
 
 
 def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):
-    suite = tmp_path / "ladder.toml"
-    suite.write_text(SUITE.replace('integrator = "backward-euler"', 'integrator = "bdf2"\nladders = ["backward-euler"]'))
+    bdf2_truth = SUITE["truth"] | {"integrator": "bdf2", "ladders": ["backward-euler"]}
+    suite = write_toml(tmp_path / "ladder.toml", SUITE | {"truth": bdf2_truth})
     rows = pd.read_csv(run_suite(str(suite), tmp_path / "out", variants=[], report=False))
     ref = rows[rows["variant"] == "reference"].iloc[0]
     assert ref["truth_integrator"] == "bdf2" and ref["integrator"] == "backward-euler" and ref["truth_depth"] == 2

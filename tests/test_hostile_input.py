@@ -24,17 +24,15 @@ from scenarios.meshes import load_mesh, make_mesh
 from scenarios.model import MeshSpec
 from scenarios.suites import suite_from_dict
 
+from scenes import block_drop, mu_axis, suite_tables, toml_text
+
 FAST = settings(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 # ----- suites -------------------------------------------------------------------------------------------------
-VALID_SUITE: dict[str, Any] = {
-    "suite": {"name": "fuzz", "description": "d"},
-    "base": {"mesh": {"name": "block"}, "time": {"dt": 0.01, "duration": 0.1}},
-    "axis": [{"name": "mu", "field": "plane.friction", "values": [0.1, 0.5]},
-             {"name": "plane", "values": [{"label": "p1", "plane.normal": [1.0, 5.0, 2.0]}]}],
-    "split": {"test": [{"mu": "mu0.5"}]},
-    "extra": [{"labels": {"case": "x"}, "overrides": {"plane.friction": 0.2}}],
-}
+VALID_SUITE: dict[str, Any] = suite_tables(
+    "fuzz", block_drop(resolution=None, clearance=None, duration=0.1), mu_axis(0.1, 0.5),
+    {"name": "plane", "values": [{"label": "p1", "plane.normal": [1.0, 5.0, 2.0]}]}, description="d",
+    split={"test": [{"mu": "mu0.5"}]}, extra=[{"labels": {"case": "x"}, "overrides": {"plane.friction": 0.2}}])
 JUNK = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=6),
                     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=6), inner,
                                                                                  max_size=3),
@@ -90,17 +88,9 @@ def test_a_missing_suite_part_raises_only_scenario_errors(path: tuple) -> None:
         assert err.field
 
 
-SUITE_TOML = """[suite]
-name = "fuzz"
-[base.mesh]
-name = "block"
-[[axis]]
-name = "mu"
-field = "plane.friction"
-values = [0.1, 0.5]
-[split]
-test = [{ mu = "mu0.5" }]
-"""
+SUITE_TOML = toml_text(suite_tables(
+    "fuzz", block_drop(resolution=None, clearance=None, dt=None, duration=None), mu_axis(0.1, 0.5),
+    split={"test": [{"mu": "mu0.5"}]}))
 
 
 @settings(FAST, max_examples=400)

@@ -16,32 +16,16 @@ from solvers.licrom.train import CheckpointError
 from solvers.model import build_model
 from solvers.trajectory import Trajectory
 
-SUITE = """
-[suite]
-name = "tinytrain"
-description = "block drops for training"
-[base.mesh]
-name = "block"
-resolution = "coarse"
-[base.material]
-youngs_modulus = 1.0e5
-[base.initial]
-clearance = 0.02
-[base.time]
-dt = 0.01
-duration = 0.15
-[[axis]]
-name = "mu"
-field = "plane.friction"
-values = [0.2, 0.6]
-"""
+from scenes import block_drop, mu_axis, suite_tables, write_toml
+
+SUITE = suite_tables("tinytrain", block_drop(clearance=0.02, duration=0.15, material={"youngs_modulus": 1.0e5}),
+                     mu_axis(0.2, 0.6), description="block drops for training")
 
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("train")
-    suite = root / "tinytrain.toml"
-    suite.write_text(SUITE)
+    suite = write_toml(root / "tinytrain.toml", SUITE)
     out = root / "model"
     assert main(["train", "--suite", str(suite), "--r", "14", "--epochs", "3", "--affine", "--points", "64",
                  "--out", str(out)]) == 0
@@ -55,9 +39,7 @@ def test_train_writes_checkpoint_and_loss(trained):
 
 def test_simulate_with_checkpoint_on_training_and_other_mesh(trained, tmp_path):
     suite, out = trained
-    scenario = str(suite.parent / "one.toml")
-    Path(scenario).write_text('name = "one"\n[mesh]\nname = "block"\nresolution = "coarse"\n[initial]\n'
-                              'clearance = 0.02\n[time]\ndt = 0.01\nduration = 0.05\n')
+    scenario = str(write_toml(suite.parent / "one.toml", {"name": "one"} | block_drop(clearance=0.02)))
     for mesh, folder in ((None, "same"), ("block/coarse_alt", "other")):
         argv = ["simulate", scenario, "--solver", "licrom", "--model", str(out / "model.pt"), "--no-vtu", "-q",
                 "--out", str(tmp_path / folder)]

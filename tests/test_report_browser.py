@@ -17,15 +17,15 @@ from reports.html import ScenarioRuns, write_report_html
 from scenarios.model import Plane
 from solvers.trajectory import Trajectory
 
+from scenes import block_drop, mu_axis, suite_tables, write_toml
+
 PLANE = Plane(normal=(0.0, 1.0, 0.0), offset=0.0, friction=0.5)
 HOSTILE = '</script><script>window.pwned=1</script><img src=x onerror="window.pwned=2">'
 
 
 def test_report_loads_offline_without_errors(tmp_path: Path):
-    suite = tmp_path / "tiny.toml"
-    suite.write_text('[suite]\nname = "tiny"\ndescription = "one block drop"\n[base.mesh]\nname = "block"\n'
-                     'resolution = "coarse"\n[base.initial]\nclearance = 0.01\n[base.time]\ndt = 0.01\n'
-                     'duration = 0.05\n[[axis]]\nname = "mu"\nfield = "plane.friction"\nvalues = [0.3]\n')
+    suite = write_toml(tmp_path / "tiny.toml", suite_tables("tiny", block_drop(), mu_axis(0.3),
+                                                            description="one block drop"))
     run_suite(str(suite), tmp_path / "out", variants=[], jobs=1)
     page = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
     assert 'id="viewer-0"' in page  # the stored reference run is in the 3D viewer

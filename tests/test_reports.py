@@ -39,6 +39,8 @@ from scenarios.meshes import bbox_diagonal
 from scenarios.model import Material, Plane
 from solvers.trajectory import Trajectory
 
+from scenes import block_drop, mu_axis, suite_tables, write_toml
+
 PLANE = Plane(normal=(0.0, 1.0, 0.0), offset=0.0, friction=0.5)
 
 
@@ -421,10 +423,8 @@ def test_build_report_shows_the_truth_run_and_errors_against_it(tmp_path: Path, 
     from bench.reporting import build_report
     from bench.store import RunStore
 
-    suite = tmp_path / "tiny.toml"
-    suite.write_text('[suite]\nname = "tiny"\ndescription = "stored runs"\n[base.mesh]\nname = "block"\n'
-                     'resolution = "coarse"\n[base.time]\ndt = 0.01\nduration = 0.05\n[[axis]]\nname = "mu"\n'
-                     'field = "plane.friction"\nvalues = [0.3]\n')
+    suite = write_toml(tmp_path / "tiny.toml", suite_tables("tiny", block_drop(clearance=None), mu_axis(0.3),
+                                                            description="stored runs"))
     out = tmp_path / "out"
     store = RunStore(out / "runs")
     truth = {"truth_certified": True, "truth_err_est": 0.001, "truth_dt": 0.0025, "truth_depth": 2,

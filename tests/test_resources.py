@@ -20,13 +20,14 @@ from scenarios.load import scenario_from_dict
 from scenarios.resources import MAX_STEPS, check_resources, check_runs, stored_bytes, stored_frames
 from scenarios.suites import list_suites, load_suite, suite_from_dict
 
+from scenes import block_drop, mu_axis, suite_tables, write_toml
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _simulate(tmp_path: Path, time_table: str, *extra: str) -> tuple[subprocess.CompletedProcess, float]:
+def _simulate(tmp_path: Path, time_table: dict[str, float], *extra: str) -> tuple[subprocess.CompletedProcess, float]:
     """`frictionbench simulate` of a default scenario with the given [time] entries: the process and its wall time."""
-    scene = tmp_path / "scene.toml"
-    scene.write_text(f'name = "oversized"\n[time]\n{time_table}\n')
+    scene = write_toml(tmp_path / "scene.toml", {"name": "oversized", "time": time_table})
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "bench.cli", "simulate", str(scene), "--out", str(tmp_path / "out"),
@@ -34,9 +35,9 @@ def _simulate(tmp_path: Path, time_table: str, *extra: str) -> tuple[subprocess.
     return done, time.perf_counter() - t0
 
 
-@pytest.mark.parametrize(("entry", "field", "steps"), [("dt = 1e-12", "time.dt", "1e+12 steps"),
-                                                       ("duration = 1e12", "time.duration", "1e+14 steps")])
-def test_simulate_refuses_an_absurd_step_count_at_once(tmp_path: Path, entry: str, field: str, steps: str):
+@pytest.mark.parametrize(("entry", "field", "steps"), [({"dt": 1e-12}, "time.dt", "1e+12 steps"),
+                                                       ({"duration": 1e12}, "time.duration", "1e+14 steps")])
+def test_simulate_refuses_an_absurd_step_count_at_once(tmp_path: Path, entry: dict, field: str, steps: str):
     done, elapsed = _simulate(tmp_path, entry)
     assert done.returncode == 2, done.stderr
     assert elapsed < 5.0  # interpreter start and imports included; the guard itself needs no simulation
@@ -77,8 +78,7 @@ def test_the_override_lets_oversized_runs_through_validation(tmp_path: Path):
     check_runs([(sc, sc.mesh)], allow_large=True)
     check_resources(sc, 10**6, allow_large=True)
     # suite level: `allow_large = true` in the [suite] table
-    d = {"suite": {"name": "long"}, "base": {"mesh": {"name": "block"}, "time": {"duration": 1e12}},
-         "axis": [{"name": "mu", "field": "plane.friction", "values": [0.3]}]}
+    d = suite_tables("long", block_drop(resolution=None, clearance=None, dt=None, duration=1e12), mu_axis(0.3))
     with pytest.raises(ScenarioError, match="time.duration"):
         guard_resources(suite_from_dict(d), [])
     allowed = suite_from_dict(d | {"suite": {"name": "long", "allow_large": True}})
@@ -89,9 +89,8 @@ def test_the_override_lets_oversized_runs_through_validation(tmp_path: Path):
 
 
 def test_a_suite_run_is_refused_before_any_work(tmp_path: Path):
-    suite = tmp_path / "long.toml"
-    suite.write_text('[suite]\nname = "long"\n[base.mesh]\nname = "block"\n[base.time]\ndt = 1e-9\n'
-                     '[[axis]]\nname = "mu"\nfield = "plane.friction"\nvalues = [0.3]\n')
+    base = block_drop(resolution=None, clearance=None, dt=1e-9, duration=None)
+    suite = write_toml(tmp_path / "long.toml", suite_tables("long", base, mu_axis(0.3)))
     t0 = time.perf_counter()
     with pytest.raises(ScenarioError, match="time.dt"):
         run_suite(str(suite), tmp_path / "out", variants=[])
@@ -100,8 +99,7 @@ def test_a_suite_run_is_refused_before_any_work(tmp_path: Path):
 
 
 def test_a_variant_at_half_the_time_step_is_guarded_too():
-    d = {"suite": {"name": "edge"}, "base": {"mesh": {"name": "block"}, "time": {"dt": 1e-5, "duration": 1.0}},
-         "axis": [{"name": "mu", "field": "plane.friction", "values": [0.3]}]}
+    d = suite_tables("edge", block_drop(resolution=None, clearance=None, dt=1e-5, duration=1.0), mu_axis(0.3))
     suite = suite_from_dict(d)
     guard_resources(suite, [])  # 100,000 steps: at the bound
     with pytest.raises(ScenarioError, match="200,000 steps"):

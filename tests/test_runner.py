@@ -13,37 +13,15 @@ from bench.runner import Task, run_suite, run_tasks
 from bench.store import RunStore
 from scenarios.suites import load_suite
 
-SUITE = """
-[suite]
-name = "tiny"
-description = "two short block drops"
+from scenes import block_drop, mu_axis, suite_tables, write_toml
 
-[base.mesh]
-name = "block"
-resolution = "coarse"
-
-[base.initial]
-clearance = 0.01
-
-[base.time]
-dt = 0.01
-duration = 0.05
-
-[[axis]]
-name = "mu"
-field = "plane.friction"
-values = [0.2, 0.6]
-
-[split]
-test = [{ mu = "mu0.6" }]
-"""
+SUITE = suite_tables("tiny", block_drop(), mu_axis(0.2, 0.6), description="two short block drops",
+                     split={"test": [{"mu": "mu0.6"}]})
 
 
 @pytest.fixture
 def suite_file(tmp_path: Path) -> Path:
-    path = tmp_path / "tiny.toml"
-    path.write_text(SUITE)
-    return path
+    return write_toml(tmp_path / "tiny.toml", SUITE)
 
 
 def test_run_writes_results_and_resumes_only_what_is_missing(tmp_path, suite_file):
@@ -209,8 +187,7 @@ def test_sigterm_stops_the_workers_with_the_run(tmp_path):
 
     import psutil
 
-    suite = tmp_path / "long.toml"
-    suite.write_text(SUITE.replace("duration = 0.05", "duration = 60.0"))  # minutes per run on this mesh
+    suite = write_toml(tmp_path / "long.toml", SUITE | {"base": block_drop(duration=60.0)})  # minutes per run
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", str(suite), "--solvers", "full", "--jobs", "2",
            "--out", str(out)]
@@ -233,17 +210,13 @@ def test_sigterm_stops_the_workers_with_the_run(tmp_path):
     assert not list((out / "runs").glob("*/stats.json"))  # nothing half-done was stored
 
 
-LAWS_SUITE = SUITE.replace('name = "tiny"', 'name = "laws"') + """
-[[extra]]
-labels = { case = "touching" }
-tags = []
-overrides = { "initial.clearance" = 0.0, "plane.friction" = 0.4, tags = ["resting"] }
-"""
+LAWS_SUITE = SUITE | {"suite": {"name": "laws", "description": "two short block drops"}, "extra": [
+    {"labels": {"case": "touching"},
+     "overrides": {"initial.clearance": 0.0, "plane.friction": 0.4, "tags": ["resting"]}}]}
 
 
 def test_barrier_variant_compares_the_laws_and_a_stability_matrix_judges_every_case(tmp_path):
-    suite = tmp_path / "laws.toml"
-    suite.write_text(LAWS_SUITE.replace("tags = []\n", ""))
+    suite = write_toml(tmp_path / "laws.toml", LAWS_SUITE)
     gates = tmp_path / "gates.toml"
     gates.write_text("""
 [[gate]]

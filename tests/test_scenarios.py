@@ -6,6 +6,7 @@ import copy
 import math
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,8 @@ from scenarios.errors import ScenarioError
 from scenarios.load import load_scenario, scenario_from_dict, scenario_hash, scenario_to_dict
 from scenarios.model import Effects
 from scenarios.suites import list_suites, load_suite, suite_from_dict
+
+from scenes import block_drop, mu_axis, suite_tables, toml_text, write_toml
 
 # The catalogue contract of scenarios.meshes (names -> resolutions); the loader is tested against it alone.
 CATALOGUE = {
@@ -490,9 +493,20 @@ def test_suite_axis_can_remove_the_plane() -> None:
 
 
 def test_load_suite_by_path(tmp_path: Path) -> None:
-    (tmp_path / "mine.toml").write_text(
-        '[suite]\nname = "mine"\n[[axis]]\nname = "mu"\nfield = "plane.friction"\nvalues = [0.2, 0.4]\n')
+    write_toml(tmp_path / "mine.toml", suite_tables("mine", None, mu_axis(0.2, 0.4)))
     assert [m.scenario.name for m in load_suite(tmp_path / "mine.toml").scenarios] == ["mine/mu0.2", "mine/mu0.4"]
+
+
+def test_the_tests_suite_files_read_back_as_written(tmp_path: Path) -> None:
+    """tests/scenes.py's TOML writer: every shape the tests' suites use reads back to the same tables and members."""
+    d = suite_tables("rt", block_drop(material={"youngs_modulus": 1e5}, effects={"damping": False}),
+                     mu_axis(0.2, 0.6), {"name": "plane", "values": [{"label": "p1", "plane.normal": [1.0, 5.0, 2]}]},
+                     description='a "quoted" one', split={"test": [{"mu": "mu0.6"}]}, truth={"tol": 1e-6, "depth": 2},
+                     extra=[{"labels": {"case": "x"}, "overrides": {"initial.clearance": 0.0, "tags": ["resting"]}}])
+    assert tomllib.loads(toml_text(d)) == d
+    written = load_suite(write_toml(tmp_path / "rt.toml", d))
+    assert len(written.scenarios) == 3 and written.scenarios == suite_from_dict(d).scenarios
+    assert written.truth == suite_from_dict(d).truth
 
 
 @pytest.mark.parametrize(("path", "value", "field"), [
@@ -520,9 +534,8 @@ def test_bad_suite_is_named(path: str, value: object, field: str) -> None:
 
 
 def test_bad_member_names_suite_file_and_member(tmp_path: Path) -> None:
-    path = tmp_path / "s.toml"
-    path.write_text('[suite]\nname = "s"\n[base.material]\npoisson_ratio = 0.3\n'
-                    '[[axis]]\nname = "nu"\nfield = "material.poisson_ratio"\nvalues = [0.3, 0.5]\n')
+    nu = {"name": "nu", "field": "material.poisson_ratio", "values": [0.3, 0.5]}
+    path = write_toml(tmp_path / "s.toml", suite_tables("s", {"material": {"poisson_ratio": 0.3}}, nu))
     with pytest.raises(ScenarioError) as info:
         load_suite(path)
     assert info.value.field == "material.poisson_ratio"

@@ -16,23 +16,11 @@ from solvers.contract import Solver, SolverParameterError
 from solvers.model import Model, State
 from solvers.step_stats import StepStats
 
-SUITE = """
-[suite]
-name = "toy"
-description = "a free fall and a drop onto a plane"
+from scenes import block_drop, suite_tables, write_toml
 
-[base.mesh]
-name = "block"
-resolution = "coarse"
-
-[base.time]
-dt = 0.01
-duration = 0.1
-
-[[axis]]
-name = "case"
-values = [{ label = "fall", plane = false }, { label = "drop", "initial.clearance" = 0.01 }]
-"""
+SUITE = suite_tables("toy", block_drop(clearance=None, duration=0.1), {"name": "case", "values": [
+    {"label": "fall", "plane": False}, {"label": "drop", "initial.clearance": 0.01}]},
+    description="a free fall and a drop onto a plane")
 
 
 class Ballistic(Solver):
@@ -63,8 +51,7 @@ def ballistic(monkeypatch):
 
 
 def test_a_registered_toy_solver_runs_in_the_matrix(ballistic, tmp_path, capsys):
-    suite = tmp_path / "toy.toml"
-    suite.write_text(SUITE)
+    suite = write_toml(tmp_path / "toy.toml", SUITE)
     out = tmp_path / "out"
     assert main(["list"]) == 0 and "ballistic" in capsys.readouterr().out
     assert main(["run", "--suite", str(suite), "--solvers", "ballistic", "--out", str(out), "--no-report"]) == 0
