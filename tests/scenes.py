@@ -1,17 +1,15 @@
-"""Scenes and suites shared by several test modules, and the TOML writer for the files the tests run (no test
+"""Scenes and suites shared by several test modules, written as TOML files for the tests that run them (no test
 pastes a suite or a scene as TOML text; only deliberately malformed input stays spelled out in its test)."""
 
 from __future__ import annotations
 
-import functools
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 
-from scenarios.errors import key_path
 from scenarios.model import Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
 
 G = 9.81
@@ -42,54 +40,11 @@ def suite_tables(name: str, base: Mapping[str, Any] | None, *axes: Mapping[str, 
             | ({"axis": [dict(a) for a in axes]} if axes else {}) | tables)
 
 
-def toml_text(tables: Mapping[str, Any]) -> str:
-    """`tables` (nested dicts of strings, numbers, booleans, lists) as TOML text: a dict becomes a table, a list of
-    dicts at the top level an array of tables (its entries' values inline), anything else an inline value."""
-    return "".join(_table_lines(tables, ()))
-
-
 def write_toml(path: Path, tables: Mapping[str, Any]) -> Path:
-    """Write `tables` (a scene or a suite) as TOML to `path`, and return `path`."""
-    path.write_text(toml_text(tables), encoding="utf-8")
+    """Write `tables` (a scene or a suite: nested dicts of strings, numbers, booleans, lists) as TOML to `path`, and
+    return `path`."""
+    path.write_text(tomli_w.dumps(tables), encoding="utf-8")
     return path
-
-
-def _table_lines(table: Mapping[str, Any], where: tuple[str, ...]) -> list[str]:
-    """The lines of one table at path `where`: its inline values, then its sub-tables and arrays of tables."""
-    def kind(v: Any) -> str:
-        if isinstance(v, Mapping):
-            return "table"
-        arrays = not where and isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v)
-        return "array" if arrays else "inline"
-
-    lines = [_pair(k, v) + "\n" for k, v in table.items() if kind(v) == "inline"]
-    for k, v in table.items():
-        if kind(v) == "table":
-            only_tables = v and all(kind(x) == "table" for x in v.values())  # no header needed
-            header = [] if only_tables else [f"[{functools.reduce(key_path, where + (k,), '')}]\n"]
-            lines += header + _table_lines(v, where + (k,))
-        elif kind(v) == "array":
-            for entry in v:
-                lines += [f"[[{key_path('', k)}]]\n"] + [_pair(a, b) + "\n" for a, b in entry.items()]
-    return lines
-
-
-def _pair(key: str, value: Any) -> str:
-    """`key = value` in TOML: the key bare where it can be, else quoted ("plane.friction"), the value inline."""
-    return f"{key_path('', key)} = {_inline(value)}"
-
-
-def _inline(value: Any) -> str:
-    """An inline TOML value; floats as `repr` writes them, which reads back to the same float."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, (int, float)):
-        return repr(float(value)) if isinstance(value, float) else str(int(value))
-    if isinstance(value, Mapping):
-        return "{ " + ", ".join(_pair(k, v) for k, v in value.items()) + " }"
-    return "[" + ", ".join(_inline(v) for v in value) + "]"
 
 
 def incline(theta_deg: float, mu: float, **kw) -> Scenario:

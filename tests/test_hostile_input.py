@@ -15,6 +15,7 @@ from typing import Any
 import meshio
 import numpy as np
 import pytest
+import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -24,7 +25,7 @@ from scenarios.meshes import load_mesh, make_mesh
 from scenarios.model import MeshSpec
 from scenarios.suites import suite_from_dict
 
-from scenes import block_drop, mu_axis, suite_tables, toml_text
+from scenes import block_drop, mu_axis, suite_tables
 
 FAST = settings(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
@@ -88,7 +89,7 @@ def test_a_missing_suite_part_raises_only_scenario_errors(path: tuple) -> None:
         assert err.field
 
 
-SUITE_TOML = toml_text(suite_tables(
+SUITE_TOML = tomli_w.dumps(suite_tables(
     "fuzz", block_drop(resolution=None, clearance=None, dt=None, duration=None), mu_axis(0.1, 0.5),
     split={"test": [{"mu": "mu0.5"}]}))
 

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import tomli_w
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -20,7 +21,7 @@ from scenarios.load import load_scenario, scenario_from_dict, scenario_hash, sce
 from scenarios.model import Effects
 from scenarios.suites import list_suites, load_suite, suite_from_dict
 
-from scenes import block_drop, mu_axis, suite_tables, toml_text, write_toml
+from scenes import block_drop, mu_axis, suite_tables, write_toml
 
 # The catalogue contract of scenarios.meshes (names -> resolutions); the loader is tested against it alone.
 CATALOGUE = {
@@ -498,12 +499,13 @@ def test_load_suite_by_path(tmp_path: Path) -> None:
 
 
 def test_the_tests_suite_files_read_back_as_written(tmp_path: Path) -> None:
-    """tests/scenes.py's TOML writer: every shape the tests' suites use reads back to the same tables and members."""
+    """The suite files the tests write (tests/scenes.py, with tomli-w): every shape they use reads back to the same
+    tables and members."""
     d = suite_tables("rt", block_drop(material={"youngs_modulus": 1e5}, effects={"damping": False}),
                      mu_axis(0.2, 0.6), {"name": "plane", "values": [{"label": "p1", "plane.normal": [1.0, 5.0, 2]}]},
                      description='a "quoted" one', split={"test": [{"mu": "mu0.6"}]}, truth={"tol": 1e-6, "depth": 2},
                      extra=[{"labels": {"case": "x"}, "overrides": {"initial.clearance": 0.0, "tags": ["resting"]}}])
-    assert tomllib.loads(toml_text(d)) == d
+    assert tomllib.loads(tomli_w.dumps(d)) == d
     written = load_suite(write_toml(tmp_path / "rt.toml", d))
     assert len(written.scenarios) == 3 and written.scenarios == suite_from_dict(d).scenarios
     assert written.truth == suite_from_dict(d).truth
