@@ -2,12 +2,12 @@
 
 A `Column` says what a column is (kind), which way it is better and by how much it may move before `frictionbench
 compare` calls it a regression, its unit and meaning, and the function that computes it. Everything else is derived
-from `COLUMNS`: the table's column order (`analysis.table`), the comparison rules (`bench.compare.default_rules`),
+from `COLUMNS`: the table's column order (`frictionbench.analysis.table`), the comparison rules (`frictionbench.bench.compare.default_rules`),
 the stability metrics of the headline, the report and the comparison, the report's column groups, the columns
-`bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
+`frictionbench.bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
 
 A metric needs only its declaration here: a `Column` with `compute` (a function of the run's reference, the run's
-trajectory and its scenario) is evaluated on every finished run by row building (`analysis.rows.run_metrics`).
+trajectory and its scenario) is evaluated on every finished run by row building (`frictionbench.analysis.rows.run_metrics`).
 Plug-ins and tests add columns with `register`.
 
 Cells are read by `is_missing`, `number` and `flag` (and `truthy`), whether they come from rows built in memory or
@@ -35,7 +35,7 @@ DIRECTIONS: tuple[str, ...] = ("lower", "higher", "true", "one", "none")
 ACCURACY_TOL: dict[str, float] = {"rel": 0.10, "abs": 1e-4}
 #: The tolerance of timing figures, a ratio: loose, since step times on shared machines move by tens of per cent.
 TIMING_FACTOR = 1.5
-#: Distribution name -> column of its version in `analysis.table.provenance`.
+#: Distribution name -> column of its version in `frictionbench.analysis.table.provenance`.
 VERSIONED_PACKAGES: dict[str, str] = {
     "frictionbench": "frictionbench_version",
     "numpy": "numpy_version",
@@ -106,9 +106,9 @@ def _timing(name: str, better: str, unit: str, meaning: str, source: str, **kw) 
     return Column(name, "timing", better, unit, meaning, source, factor=factor, **kw)
 
 
-_ROWS = "analysis.rows.collect_rows"
-_METRICS = "analysis.metrics"
-_STATS = "solvers.run.run_scenario"
+_ROWS = "frictionbench.analysis.rows.collect_rows"
+_METRICS = "frictionbench.analysis.metrics"
+_STATS = "frictionbench.solvers.run.run_scenario"
 
 #: Every column, in table order (see `Column.placed`).
 COLUMNS: dict[str, Column] = {c.name: c for c in (
@@ -123,9 +123,9 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("variant", "identity", unit="text", meaning="the solver variant's label (`reference`, a ladder level)",
            source=_ROWS, summary=True),
     Column("status", "stability", "true", "text", "`ok`, or `failed` for a run without a usable trajectory",
-           "analysis.rows.run_metrics", summary=True),
+           "frictionbench.analysis.rows.run_metrics", summary=True),
     Column("failure", "stability", unit="text", meaning="why a run failed (the exception), '' otherwise",
-           source="analysis.rows.run_metrics", summary=True),
+           source="frictionbench.analysis.rows.run_metrics", summary=True),
     Column("frames_compared", "accuracy", unit="count", meaning="frames whose times the run and its reference share",
            source=f"{_METRICS}.compare"),
     _accuracy("pos_rmse_rel", "RMS over frames and vertices of the position error against the same-dt reference",
@@ -166,11 +166,11 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
            f"{_METRICS}.stability", rel=0.10, abs=0.01),
     _timing("setup_s", "none", "s", "per-run setup", _STATS),
     _timing("train_s", "none", "s", "training of the reduced model (offline, per shape)",
-            "solvers.contract.Solver.prepare"),
+            "frictionbench.solvers.contract.Solver.prepare"),
     _timing("step_ms_median", "lower", "ms", "median wall time of a step", _STATS, summary=True),
     _timing("step_ms_p95", "lower", "ms", "95th percentile of a step's wall time", _STATS),
     _timing("speedup", "higher", "-", "the reference's step_ms_median over this run's, same run",
-            "analysis.rows.run_timing", summary=True),
+            "frictionbench.analysis.rows.run_timing", summary=True),
     Column("integrator", "parameter", unit="text", meaning="the run's time integrator", source=_ROWS, summary=True),
     _accuracy("err_truth", "pos_rmse_rel against the scenario's ground truth (another mesh carried onto its mesh)",
               _ROWS, summary=True),
@@ -180,24 +180,24 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     _accuracy("err_projection", "the truth projected onto the row's subspace: the basis's share", _ROWS,
               summary=True),
     _timing("wall_s_per_sim_s", "lower", "s/s", "the steps' wall time per simulated second",
-            "analysis.truth.wall_s_per_sim_s", summary=True),
+            "frictionbench.analysis.truth.wall_s_per_sim_s", summary=True),
     _timing("speedup_equal_accuracy", "higher", "-", "full-space ladder's cost at this row's err_truth over its cost",
-            "analysis.truth.with_frontier", summary=True),
+            "frictionbench.analysis.truth.with_frontier", summary=True),
     _timing("frontier_note", "none", "text", "why speedup_equal_accuracy is missing or an upper bound",
-            "analysis.truth.with_frontier", summary=True),
+            "frictionbench.analysis.truth.with_frontier", summary=True),
     Column("truth_certified", "accuracy", "true", "flag", "the truth's last ladder difference met the tolerance",
-           "analysis.rows.truth_columns", summary=True),
+           "frictionbench.analysis.rows.truth_columns", summary=True),
     Column("truth_horizon_s", "accuracy", unit="s", meaning="end of the first stretch the truth meets tol frame by "
-           "frame", source="analysis.truth.certified_horizon", summary=True),
-    _accuracy("truth_err_est", "Richardson estimate of the truth's own error", "analysis.truth.richardson",
+           "frame", source="frictionbench.analysis.truth.certified_horizon", summary=True),
+    _accuracy("truth_err_est", "Richardson estimate of the truth's own error", "frictionbench.analysis.truth.richardson",
               summary=True),
     Column("truth_order", "accuracy", meaning="the order the truth's error estimate used",
-           source="analysis.truth.richardson"),
-    Column("truth_dt", "parameter", unit="s", meaning="the truth's time step", source="analysis.rows.truth_columns"),
+           source="frictionbench.analysis.truth.richardson"),
+    Column("truth_dt", "parameter", unit="s", meaning="the truth's time step", source="frictionbench.analysis.rows.truth_columns"),
     Column("truth_depth", "parameter", unit="count", meaning="the truth's ladder level (dt / 2^depth)",
-           source="analysis.rows.truth_columns"),
+           source="frictionbench.analysis.rows.truth_columns"),
     Column("truth_integrator", "parameter", unit="text", meaning="the truth's time integrator",
-           source="analysis.rows.truth_columns"),
+           source="frictionbench.analysis.rows.truth_columns"),
     Column("ladder", "parameter", unit="text", meaning="on a truth-ladder row: its ladder's integrator", source=_ROWS,
            summary=True),
     Column("ladder_level", "parameter", unit="count", meaning="on a truth-ladder row: its level k (dt / 2^k)",
@@ -205,7 +205,7 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("mu", "parameter", meaning="the plane's friction coefficient", source=_ROWS, placed=False),
     Column("law", "parameter", unit="text", meaning="the contact law", source=_ROWS, placed=False),
     Column("tags", "parameter", unit="text", meaning="the scenario's tags", source=_ROWS, placed=False),
-    Column("run", "provenance", unit="text", meaning="the run's key in the run store", source="bench.store.run_key",
+    Column("run", "provenance", unit="text", meaning="the run's key in the run store", source="frictionbench.bench.store.run_key",
            placed=False),
     Column("dt", "parameter", unit="s", meaning="the run's time step", source=_ROWS, placed=False, summary=True),
     _timing("warmup_s", "none", "s", "first step with kernel compilation, apart", _STATS, placed=False),
@@ -225,17 +225,17 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
            placed=False),
     Column("model", "parameter", unit="text", meaning="the trained model a variant uses", source=_ROWS, placed=False),
     _accuracy("remesh_ratio", "pos_rmse_rel on another mesh over that on the training mesh",
-              "analysis.derived.with_remesh_ratio", unit="-", placed=False),
+              "frictionbench.analysis.derived.with_remesh_ratio", unit="-", placed=False),
     _accuracy("ref_dt_change", "the full-space run at a smaller dt against the reference: its own time error",
-              "analysis.derived.with_ref_dt_change", placed=False),
-    *(Column(name, "provenance", unit="text", meaning=meaning, source="analysis.table.provenance")
+              "frictionbench.analysis.derived.with_ref_dt_change", placed=False),
+    *(Column(name, "provenance", unit="text", meaning=meaning, source="frictionbench.analysis.table.provenance")
       for name, meaning in (
         ("commit", "git HEAD of the source tree"), ("commit_dirty", "tracked files differ from HEAD"),
         ("timestamp_utc", "when the table was written"), ("device", "the device the solvers ran on"),
         ("cpu_name", "the CPU model"), ("gpu_name", "the first GPU's name"), ("platform", "the operating system"),
         ("python_version", "the Python version"))),
     *(Column(column, "provenance", unit="text", meaning=f"installed version of {dist}",
-             source="analysis.table.provenance") for dist, column in VERSIONED_PACKAGES.items()),
+             source="frictionbench.analysis.table.provenance") for dist, column in VERSIONED_PACKAGES.items()),
 )}
 
 
@@ -322,7 +322,7 @@ def truthy(value: object) -> bool:
     return flag(value) is True
 
 
-if __name__ == "__main__":  # python -m analysis.schema: rewrite the table of metrics in docs/design.md
+if __name__ == "__main__":  # python -m frictionbench.analysis.schema: rewrite the table of metrics in docs/design.md
     from pathlib import Path
 
     design = Path(__file__).resolve().parents[1] / "docs" / "design.md"

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from solvers.trajectory import Trajectory
+from frictionbench.solvers.trajectory import Trajectory
 
 
 def barycentric_weights(X_src: np.ndarray, tets: np.ndarray, points: np.ndarray, candidates: int = 16

@@ -1,6 +1,6 @@
 """Benchmark of the full-space solver: per-step time and Newton iterations on catalogue meshes.
 
-    python -m bench.benchmark_full --meshes cheese/coarse cheese/medium --device cpu --out out/bench_full.json
+    python -m frictionbench.bench.benchmark_full --meshes cheese/coarse cheese/medium --device cpu --out out/bench_full.json
 
 Runs the quick suite's first scenario (a drop onto the paper's plane with friction) on each mesh for --steps steps
 after an untimed warm-up step, and writes the figures with the machine's provenance as JSON.
@@ -11,12 +11,12 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-from bench.cli import parse_mesh
-from analysis.table import provenance
-from scenarios.model import TimeSpec
-from scenarios.suites import load_suite
-from solvers.run import run_scenario
-from scenarios.atomic import write_json_atomic
+from frictionbench.bench.cli import parse_mesh
+from frictionbench.analysis.table import provenance
+from frictionbench.scenarios.model import TimeSpec
+from frictionbench.scenarios.suites import load_suite
+from frictionbench.solvers.run import run_scenario
+from frictionbench.scenarios.atomic import write_json_atomic
 
 
 def benchmark(meshes: list[str], device: str, steps: int, linear: str) -> list[dict]:

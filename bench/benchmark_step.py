@@ -1,7 +1,7 @@
 """Benchmark of a full-space step in contact, its time broken down, with the linear solvers side by side.
 
-    python -m bench.benchmark_step --out out/bench_step.json
-    python -m bench.benchmark_step --cases hard/E1e9 --steps 3 --configs superlu:1 pardiso:1
+    python -m frictionbench.bench.benchmark_step --out out/bench_step.json
+    python -m frictionbench.bench.benchmark_step --cases hard/E1e9 --steps 3 --configs superlu:1 pardiso:1
 
 Each case (a suite member) is advanced with the default solver until a contact point first penetrates the plane,
 then `--settle` steps more: the mid-contact state. From it every configuration (`linear:threads`: the linear
@@ -24,12 +24,12 @@ from collections.abc import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from analysis.table import provenance
-from bench.cli import resolve_scenario
-from scenarios.atomic import write_json_atomic
-from scenarios.meshes import load_mesh
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.model import Model, State, build_model, initial_state
+from frictionbench.analysis.table import provenance
+from frictionbench.bench.cli import resolve_scenario
+from frictionbench.scenarios.atomic import write_json_atomic
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.model import Model, State, build_model, initial_state
 
 CASES = ["paper/cheese_p1_mu0.5", "paper/sphere_p1_mu0.5", "hard/E1e9"]
 CONFIGS = ["superlu:1", "pardiso:1", "pardiso:2"]

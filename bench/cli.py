@@ -8,16 +8,16 @@ import sys
 import threading
 from pathlib import Path
 
-import solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
-from scenarios.errors import ScenarioError
-from scenarios.model import MeshSpec, Scenario
-from scenarios.suites import TruthSpec
+import frictionbench.solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.scenarios.suites import TruthSpec
 
 
 def resolve_scenario(ref: str) -> Scenario:
     """A scenario from a TOML path, a suite member name (`quick/p1_mu0.1`) or a unique member name."""
-    from scenarios.load import load_scenario
-    from scenarios.suites import list_suites, load_suite
+    from frictionbench.scenarios.load import load_scenario
+    from frictionbench.scenarios.suites import list_suites, load_suite
 
     if ref.endswith(".toml") or Path(ref).is_file():
         return load_scenario(ref)
@@ -42,9 +42,9 @@ def parse_mesh(ref: str | None) -> MeshSpec | None:
 
 def cmd_list(args: argparse.Namespace) -> int:
     """Print suites (with member counts), catalogue meshes and solvers (an unavailable one with the reason)."""
-    from scenarios.meshes import catalogue
-    from scenarios.suites import list_suites, load_suite
-    from solvers.registry import solver_names, unavailable
+    from frictionbench.scenarios.meshes import catalogue
+    from frictionbench.scenarios.suites import list_suites, load_suite
+    from frictionbench.solvers.registry import solver_names, unavailable
 
     print("suites:")
     for name in list_suites():
@@ -65,16 +65,16 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out. The resource guard
-    (`scenarios.resources`) refuses an oversized run before anything heavy is imported."""
-    from scenarios.resources import check_runs
+    (`frictionbench.scenarios.resources`) refuses an oversized run before anything heavy is imported."""
+    from frictionbench.scenarios.resources import check_runs
 
     scenario = resolve_scenario(args.scenario)
     check_runs([(scenario, parse_mesh(args.mesh) or scenario.mesh)], allow_large=args.allow_large)
 
-    from reports.export import export_vtu_series
-    from scenarios.atomic import write_json_atomic
-    from solvers.registry import get_solver
-    from solvers.run import run_scenario
+    from frictionbench.reports.export import export_vtu_series
+    from frictionbench.scenarios.atomic import write_json_atomic
+    from frictionbench.solvers.registry import get_solver
+    from frictionbench.solvers.run import run_scenario
 
     params = {}
     if args.model:
@@ -101,15 +101,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def parse_variants(spec: str | None, epochs: int | None = None, suite: str | None = None) -> list:
-    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
+    """`--solvers` list -> Variants: names from `frictionbench.bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
     suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
     parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
     training epochs of the variants that train."""
     from dataclasses import replace
 
-    from bench.runner import REFERENCE, Variant
-    from bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS, variant_set
-    from solvers.registry import solver_names
+    from frictionbench.bench.runner import REFERENCE, Variant
+    from frictionbench.bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS, variant_set
+    from frictionbench.solvers.registry import solver_names
 
     out = []
     for name in [s for s in (spec or SUITE_DEFAULTS.get(suite or "", DEFAULT)).split(",") if s and s != REFERENCE]:
@@ -127,11 +127,11 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
-    from bench.runner import run_suite
+    from frictionbench.bench.runner import run_suite
 
     with_baseline = args.baseline is not None and not args.no_report
     if with_baseline:  # a bad baseline or tolerance is refused before the run, not after it
-        from bench.compare import CompareError, default_rules, read_results, with_tolerances
+        from frictionbench.bench.compare import CompareError, default_rules, read_results, with_tolerances
 
         try:
             read_results(args.baseline)
@@ -154,11 +154,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_train(args: argparse.Namespace) -> int:
     """Train a LiCROM model on the full-space trajectories of a suite's training split (generated and cached)."""
-    from bench.runner import REFERENCE, Task, run_tasks
-    from bench.store import RunStore
-    from scenarios.resources import check_runs
-    from scenarios.suites import load_suite
-    from solvers.licrom.train import TrainSettings, train_from_trajectories
+    from frictionbench.bench.runner import REFERENCE, Task, run_tasks
+    from frictionbench.bench.store import RunStore
+    from frictionbench.scenarios.resources import check_runs
+    from frictionbench.scenarios.suites import load_suite
+    from frictionbench.solvers.licrom.train import TrainSettings, train_from_trajectories
 
     suite = load_suite(args.suite)
     members = [m for m in suite.train if args.mesh in (None, m.scenario.mesh.name)]
@@ -182,8 +182,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """Rebuild report.html from a results folder (with a section comparing it with --baseline, if given)."""
-    from bench.compare import CompareError, compare_folders, summary
-    from bench.reporting import build_report
+    from frictionbench.bench.compare import CompareError, compare_folders, summary
+    from frictionbench.bench.reporting import build_report
 
     try:
         print(f"report:  {build_report(args.dir, baseline=args.baseline, tolerances=args.tol)}")
@@ -198,7 +198,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     """Compare a result set with a baseline per scenario, variant and metric; exit 1 on a regression."""
-    from bench.compare import CompareError, compare_folders, format_table, regressions, summary
+    from frictionbench.bench.compare import CompareError, compare_folders, format_table, regressions, summary
 
     try:
         comparison = compare_folders(args.baseline, args.new, args.tol, args.gates)
@@ -214,10 +214,10 @@ def cmd_gate(args: argparse.Namespace) -> int:
     """Check gates.toml against a results folder; non-zero exit with a list of what fell short."""
     import pandas as pd
 
-    from bench.gates import check, load_gates
-    from bench.store import load_run_info
+    from frictionbench.bench.gates import check, load_gates
+    from frictionbench.bench.store import load_run_info
 
-    from scenarios.suites import load_suite
+    from frictionbench.scenarios.suites import load_suite
 
     suite = load_suite(load_run_info(args.dir)["suite"]).name  # gates name suites; a run may name a suite file
     verdicts = check(pd.read_csv(Path(args.dir) / "results.csv"), load_gates(args.gates), suite)
@@ -286,7 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--suite", required=True)
     s.add_argument("--solvers", default=None, help="comma list of variant sets (or solver names) besides the "
                    "reference (default: the suite's set in bench.variants.SUITE_DEFAULTS, else every set of "
-                   "bench.variants; the reference's name for the reference only)")
+                   "frictionbench.bench.variants; the reference's name for the reference only)")
     s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--only", help="run only the members whose names match this shell pattern, e.g. 'paper/cheese_*'")
     s.add_argument("--jobs", type=int, default=1)

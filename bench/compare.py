@@ -3,7 +3,7 @@ metric, the values, their change, the tolerance and the gates' thresholds, and a
 
 As pytest-benchmark's `compare --fail` and asv's `continuous` do, a **regression** is a metric that moved in its
 bad direction by more than its tolerance. Each metric has a `Rule`: its kind, which direction is better, and
-its tolerance, by default those the results schema declares (`default_rules`, from `analysis.schema`):
+its tolerance, by default those the results schema declares (`default_rules`, from `frictionbench.analysis.schema`):
 
 - accuracy and stability figures (lower is better, a flag that should hold, a ratio that should stay at 1):
   regression when the change in the bad direction exceeds max(rel x |baseline|, abs);
@@ -12,7 +12,7 @@ its tolerance, by default those the results schema declares (`default_rules`, fr
   step times on shared machines move by tens of per cent from run to run.
 
 Also regressions: a binding gate of `gates.toml` that the baseline row met and the new row fails (whatever the
-tolerance; an undecidable verdict, `bench.gates`, is no failure and says so in the reason), a run that succeeded
+tolerance; an undecidable verdict, `frictionbench.bench.gates`, is no failure and says so in the reason), a run that succeeded
 in the baseline and failed in the new set, a row or a value the baseline has and the new set lacks. The same tests in the good direction give **improved**; rows only in the new set are
 **new**. Tolerances are configurable per metric or per kind (`with_tolerances`, `frictionbench compare --tol`).
 
@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.schema import COLUMNS, DIRECTIONS, JUDGED_KINDS, flag, is_missing, number
+from frictionbench.analysis.schema import COLUMNS, DIRECTIONS, JUDGED_KINDS, flag, is_missing, number
 
 #: A results row's identity across result sets.
 KEY: tuple[str, ...] = ("scenario", "solver", "variant")
@@ -68,7 +68,7 @@ class Rule:
 
 
 def default_rules() -> tuple[Rule, ...]:
-    """The rule of every judged column of the schema (`analysis.schema.Column.judged`), in table order."""
+    """The rule of every judged column of the schema (`frictionbench.analysis.schema.Column.judged`), in table order."""
     return tuple(Rule(c.name, c.kind, c.better, c.rel, c.abs, c.factor) for c in COLUMNS.values() if c.judged)
 
 
@@ -146,7 +146,7 @@ def _tolerance_fields(spec: str, match: re.Match) -> dict:
 
 def _labels(frame: pd.DataFrame) -> pd.Series:
     """`solver/variant` per row."""
-    from analysis.table import variant_labels
+    from frictionbench.analysis.table import variant_labels
 
     return variant_labels(frame)
 
@@ -164,7 +164,7 @@ def _keyed(frame: pd.DataFrame, name: str) -> dict[tuple, dict]:
 
 def _gate_index(frame: pd.DataFrame, gates: Sequence[dict]) -> dict[tuple[str, str, str], list]:
     """(scenario, label, metric) -> the verdicts of every gate on that row and metric."""
-    from bench.gates import check
+    from frictionbench.bench.gates import check
 
     index: dict[tuple[str, str, str], list] = {}
     for suite in frame["suite"].dropna().unique() if "suite" in frame else ():
@@ -269,7 +269,7 @@ def compare_folders(baseline: str | Path, new: str | Path, tolerances: Sequence[
                     gates_file: str | Path | None = None) -> pd.DataFrame:
     """`compare_results` of two result sets (output folders or results CSV files) with the default rules changed
     by `tolerances` (`with_tolerances`) and the gates of `gates_file` (None: the shipped gates)."""
-    from bench.gates import load_gates
+    from frictionbench.bench.gates import load_gates
 
     rules = with_tolerances(default_rules(), tolerances)
     try:

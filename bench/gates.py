@@ -17,7 +17,7 @@ name another file. Format:
 Each gate yields one verdict per matching row; a gate that matches no row fails (a missing run is a failure).
 A verdict is `passed`, `failed` or `undecidable`: a `max` gate on an error against the truth (`err_truth`, or a
 gate marked `against_truth`) whose limit is below 3x the error estimate of the row's truth, where that truth is
-uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
+uncertified (`frictionbench.analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
 `frictionbench gate`; so is a gate on `speedup_equal_accuracy` of a row more accurate than its whole ladder, and a
 `min` gate on it whose row is less accurate than the ladder's coarsest run (its number is an upper bound: below the
 limit it fails, at or above it nothing is proven).
@@ -32,9 +32,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.schema import flag, is_missing, number, truthy
-from analysis.table import variant_labels
-from analysis.truth import AT_MOST, MORE_ACCURATE, decidable
+from frictionbench.analysis.schema import flag, is_missing, number, truthy
+from frictionbench.analysis.table import variant_labels
+from frictionbench.analysis.truth import AT_MOST, MORE_ACCURATE, decidable
 
 #: Metrics that are errors against the ground truth: their `max` gates can be undecidable.
 TRUTH_METRICS: tuple[str, ...] = ("err_truth",)
@@ -69,14 +69,14 @@ SHIPPED_GATES = "gates.toml"
 def load_gates(path: str | Path | None = None) -> list[dict]:
     """The `[[gate]]` entries of a gates file; None reads the shipped one (package data of `bench`)."""
     if path is None:
-        text = resources.files("bench").joinpath(SHIPPED_GATES).read_text(encoding="utf-8")
+        text = resources.files("frictionbench.bench").joinpath(SHIPPED_GATES).read_text(encoding="utf-8")
     else:
         text = Path(path).read_text(encoding="utf-8")
     return tomllib.loads(text).get("gate", [])
 
 
 def _passes(value: object, gate: dict) -> bool:
-    """Whether a cell meets a gate: `equals` a flag (`analysis.schema.flag`), or within `min` and `max`; a missing
+    """Whether a cell meets a gate: `equals` a flag (`frictionbench.analysis.schema.flag`), or within `min` and `max`; a missing
     value never does."""
     if is_missing(value):
         return False
@@ -90,7 +90,7 @@ def _passes(value: object, gate: dict) -> bool:
 
 def _undecidable(row: pd.Series, gate: dict) -> bool:
     """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
-    estimate is too large for the limit (`analysis.truth.decidable`), or a gate on the speedup at equal accuracy
+    estimate is too large for the limit (`frictionbench.analysis.truth.decidable`), or a gate on the speedup at equal accuracy
     of a row more accurate than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on
     it met only by an upper bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
     if gate["metric"] == "speedup_equal_accuracy":

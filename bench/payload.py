@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-from solvers.trajectory import Trajectory
+from frictionbench.solvers.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

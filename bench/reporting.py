@@ -7,13 +7,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.metrics import error_over_time
-from bench.gates import check, load_gates
-from bench.store import RunStore, load_run_info
-from reports.html import ScenarioRuns, comparison_section, write_report_html
-from reports.plots import ladder_mask
-from scenarios.suites import load_suite
-from solvers.trajectory import Trajectory
+from frictionbench.analysis.metrics import error_over_time
+from frictionbench.bench.gates import check, load_gates
+from frictionbench.bench.store import RunStore, load_run_info
+from frictionbench.reports.html import ScenarioRuns, comparison_section, write_report_html
+from frictionbench.reports.plots import ladder_mask
+from frictionbench.scenarios.suites import load_suite
+from frictionbench.solvers.trajectory import Trajectory
 
 
 def _truth(rows: pd.DataFrame, store: RunStore) -> tuple[str, Trajectory] | None:
@@ -36,7 +36,7 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
                  baseline: str | Path | None = None, tolerances: Sequence[str] = ()) -> Path:
     """Rebuild `out/report.html` from `out/results.csv` and the run store, judged by `gates_file` (None: the
     shipped gates); renders the first scenarios. With a `baseline` result set (an output folder), the report gets a
-    section comparing the results with it (`bench.compare`, its default tolerances changed by `tolerances`)."""
+    section comparing the results with it (`frictionbench.bench.compare`, its default tolerances changed by `tolerances`)."""
     out = Path(out)
     results = pd.read_csv(out / "results.csv")
     suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path
@@ -69,7 +69,7 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
                                  truth_label=truth[0] if truth is not None else "truth"))
     extra = []
     if baseline is not None:
-        from bench.compare import compare_folders
+        from frictionbench.bench.compare import compare_folders
 
         comparison = compare_folders(baseline, out, tolerances, gates_file)
         extra.append(("Comparison with the baseline", comparison_section(comparison, str(baseline))))

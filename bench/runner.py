@@ -2,11 +2,11 @@
 
 Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
 shape on the suite's training split (cached), (3) every variant on every member (and on the other mesh of the
-shape, for remeshing), (4) metrics against the references, the rows built by `analysis.rows.collect_rows` ->
+shape, for remeshing), (4) metrics against the references, the rows built by `frictionbench.analysis.rows.collect_rows` ->
 results.csv and report.html. Each run is a folder of the `RunStore` keyed by a hash of its scenario and settings:
 an interrupted run resumes with what is missing.
 Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster):
-a task carries what its worker needs and returns what it produced (`bench.payload`); only the client writes here.
+a task carries what its worker needs and returns what it produced (`frictionbench.bench.payload`); only the client writes here.
 """
 
 from __future__ import annotations
@@ -21,19 +21,19 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from analysis.metrics import error_over_time, pos_rmse_rel
-from analysis.rows import collect_rows
-from analysis.table import write_results_csv
-from analysis.truth import ladder_continues
-from bench.executors import make_executor
-from bench.payload import Artefact, RunResult, artefact_folders, localised
-from bench.store import RunStore, run_key
-from scenarios.atomic import write_json_atomic
-from scenarios.meshes import TetMesh, load_mesh
-from scenarios.model import MeshSpec, Scenario
-from scenarios.suites import SuiteMember, TruthSpec, load_suite
-from solvers.registry import entries, register_entries, unavailable
-from solvers.trajectory import Trajectory
+from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel
+from frictionbench.analysis.rows import collect_rows
+from frictionbench.analysis.table import write_results_csv
+from frictionbench.analysis.truth import ladder_continues
+from frictionbench.bench.executors import make_executor
+from frictionbench.bench.payload import Artefact, RunResult, artefact_folders, localised
+from frictionbench.bench.store import RunStore, run_key
+from frictionbench.scenarios.atomic import write_json_atomic
+from frictionbench.scenarios.meshes import TetMesh, load_mesh
+from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.scenarios.suites import SuiteMember, TruthSpec, load_suite
+from frictionbench.solvers.registry import entries, register_entries, unavailable
+from frictionbench.solvers.trajectory import Trajectory
 
 #: The solver whose runs are the references of the matrix (every other run is compared with its run of the same
 #: scenario); its default parameters are the reference's.
@@ -62,7 +62,7 @@ class Variant:
         and its time step times `dt_scale`, validated by the scenario loader."""
         if not self.overrides and self.dt_scale == 1.0:
             return sc
-        from scenarios.load import scenario_from_dict, scenario_to_dict
+        from frictionbench.scenarios.load import scenario_from_dict, scenario_to_dict
 
         d = scenario_to_dict(sc)
         d["time"]["dt"] = sc.time.dt * self.dt_scale
@@ -97,11 +97,11 @@ def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: 
     cache); returns the trajectory (with a reduced run's basis) and stats for the client to store. A failed run is
     a result with its reason, never an exception. Its BLAS, OpenMP and torch thread pools are limited to `threads`
     so that parallel workers do not oversubscribe the cores; the parent's registered `solvers`
-    (`solvers.registry.entries`) are registered here too."""
+    (`frictionbench.solvers.registry.entries`) are registered here too."""
     from threadpoolctl import threadpool_limits
 
-    from solvers.run import run_scenario
-    from solvers.warp_runtime import cache_root
+    from frictionbench.solvers.run import run_scenario
+    from frictionbench.solvers.warp_runtime import cache_root
 
     register_entries(solvers or {})
     traj = None
@@ -176,7 +176,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns. A variant whose solver
     is unavailable here is skipped (`available_variants`): a note on stderr and `skipped` in run.json say why, and
     results.csv has no row for it."""
-    from bench.training import prepare_variants
+    from frictionbench.bench.training import prepare_variants
 
     out = Path(out)
     store = RunStore(out / "runs")
@@ -207,7 +207,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
                                          "reference": reference, "truth": spec.__dict__ if spec else None,
                                          "skipped": skipped, "wall_s": time.perf_counter() - t0})
     if report:
-        from bench.reporting import build_report  # here, not above: the worker processes need no plotting
+        from frictionbench.bench.reporting import build_report  # here, not above: the worker processes need no plotting
 
         build_report(out)
     return csv
@@ -215,7 +215,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
 def available_variants(variants: Sequence[Variant]) -> tuple[list[Variant], list[dict]]:
     """(the variants whose solver is available here, the others as {solver, variant, reason}), each skipped one
-    noted on stderr with the reason (`solvers.registry.unavailable`: a package it requires is missing, or its module
+    noted on stderr with the reason (`frictionbench.solvers.registry.unavailable`: a package it requires is missing, or its module
     does not import)."""
     reasons = {name: unavailable(name) for name in dict.fromkeys(v.solver for v in variants)}
     skipped = [{"solver": v.solver, "variant": v.label or v.solver, "reason": reasons[v.solver]}
@@ -244,9 +244,9 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
                     truth: TruthSpec | None = None) -> None:
     """Refuse the whole matrix before any work when one of its runs (a reference, a remeshed reference, a variant
     with its own time step, the deepest run a truth ladder may need) exceeds the bounds of
-    `scenarios.resources.check_resources`."""
-    from scenarios.errors import ScenarioError
-    from scenarios.resources import check_runs
+    `frictionbench.scenarios.resources.check_resources`."""
+    from frictionbench.scenarios.errors import ScenarioError
+    from frictionbench.scenarios.resources import check_runs
 
     runs = []
     for m in suite.scenarios:
@@ -345,7 +345,7 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:
     """The task of a variant on a member, or the reason it has none (its overrides make an invalid scenario,
     e.g. the barrier law on a body that starts touching the plane)."""
-    from scenarios.errors import ScenarioError
+    from frictionbench.scenarios.errors import ScenarioError
 
     try:
         sc = v.scenario(member.scenario)
@@ -368,8 +368,8 @@ def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) 
 
 @dataclass(frozen=True)
 class StoreRuns:
-    """The runs of a matrix as row building reads them (`analysis.rows.Runs`): the store, and the variants
-    resolved for the suite (`bench.training.prepare_variants`)."""
+    """The runs of a matrix as row building reads them (`frictionbench.analysis.rows.Runs`): the store, and the variants
+    resolved for the suite (`frictionbench.bench.training.prepare_variants`)."""
 
     store: RunStore
     resolved: Sequence

@@ -2,7 +2,7 @@
 
 A run folder holds `trajectory.npz` (with a reduced run's basis) and `stats.json`; it counts as done only once
 `stats.json` exists (written last), so an interrupted run is simply redone and a rerun recomputes only what is
-missing. Only the client writes the store: workers return what they computed (`bench.payload`).
+missing. Only the client writes the store: workers return what they computed (`frictionbench.bench.payload`).
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-from scenarios.atomic import write_json_atomic
-from scenarios.load import scenario_to_dict
-from scenarios.model import MeshSpec, Scenario
-from solvers.trajectory import Trajectory
+from frictionbench.scenarios.atomic import write_json_atomic
+from frictionbench.scenarios.load import scenario_to_dict
+from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.solvers.trajectory import Trajectory
 
 
 @lru_cache(maxsize=64)
@@ -24,7 +24,7 @@ def mesh_identity(spec: MeshSpec) -> str:
     twice, so a recipe does not identify a mesh), or the file path (whose contents the scenario hash covers)."""
     if spec.path:
         return spec.path
-    from scenarios.meshes import load_mesh
+    from frictionbench.scenarios.meshes import load_mesh
 
     return load_mesh(spec).digest()
 
@@ -69,5 +69,5 @@ class RunStore:
 
 
 def load_run_info(out: str | Path) -> dict:
-    """The run.json of a results folder (suite, device, variants, ...; written by `bench.runner.run_suite`)."""
+    """The run.json of a results folder (suite, device, variants, ...; written by `frictionbench.bench.runner.run_suite`)."""
     return json.loads((Path(out) / "run.json").read_text())

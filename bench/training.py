@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from bench.store import RunStore
-from scenarios.suites import Suite
-from solvers.registry import get_solver
+from frictionbench.bench.store import RunStore
+from frictionbench.scenarios.suites import Suite
+from frictionbench.solvers.registry import get_solver
 
 
 def training_runs(suite: Suite, refs: dict, store: RunStore) -> dict[str, list[Path]]:

@@ -1,8 +1,8 @@
 """Is behaviour unchanged? Compare two results folders of one suite, or run the suite on a base commit and on the
 working tree first and compare those.
 
-    python -m bench.unchanged --base 1ecc70a --suite quick --out out/unchanged   # runs both, then compares
-    python -m bench.unchanged OLD_DIR NEW_DIR                                    # two existing results folders
+    python -m frictionbench.bench.unchanged --base 1ecc70a --suite quick --out out/unchanged   # runs both, then compares
+    python -m frictionbench.bench.unchanged OLD_DIR NEW_DIR                                    # two existing results folders
 
 Rows are matched by their identity columns (suite, scenario, split, mesh, train_mesh, solver, variant). Every
 other column is compared except timing and provenance (`IGNORED_COLUMNS`, `*_version`): numbers to a relative
@@ -29,13 +29,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.schema import is_missing, names
-from analysis.table import IDENTITY_COLUMNS
-from bench.gates import check, load_gates
-from bench.store import load_run_info
-from scenarios.suites import load_suite
+from frictionbench.analysis.schema import is_missing, names
+from frictionbench.analysis.table import IDENTITY_COLUMNS
+from frictionbench.bench.gates import check, load_gates
+from frictionbench.bench.store import load_run_info
+from frictionbench.scenarios.suites import load_suite
 
-#: Columns never compared: measured times (and what is derived from them) and provenance (`analysis.schema` kinds
+#: Columns never compared: measured times (and what is derived from them) and provenance (`frictionbench.analysis.schema` kinds
 #: timing and provenance).
 IGNORED_COLUMNS: frozenset[str] = frozenset(names("timing", "provenance"))
 EXACT_RTOL = 1e-9
@@ -150,10 +150,11 @@ def _masked(frame: pd.DataFrame, folders: Sequence[Path]) -> pd.DataFrame:
 
 
 def run_suite_at(source: Path, suite: str, out: Path, jobs: int) -> Path:
-    """Run `suite` with the code in `source` (a checkout) into `out`; returns out."""
+    """Run `suite` with the code in `source` (a checkout) into `out`; returns out. A checkout from before the one
+    import name (no frictionbench/ folder: its packages were top-level) runs its command line as `bench.cli`."""
     env = os.environ | {"PYTHONPATH": str(source)}
-    cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", suite, "--out", str(out), "--jobs", str(jobs),
-           "--no-report"]
+    cli = "frictionbench.bench.cli" if (source / "frictionbench" / "__init__.py").is_file() else "bench.cli"
+    cmd = [sys.executable, "-m", cli, "run", "--suite", suite, "--out", str(out), "--jobs", str(jobs), "--no-report"]
     print("running:", " ".join(cmd), f"(in {source})", flush=True)
     subprocess.run(cmd, cwd=source, env=env, check=True)
     return out
@@ -174,7 +175,7 @@ def run_base_and_tree(base: str, suite: str, out: Path, jobs: int) -> tuple[Path
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m bench.unchanged", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m frictionbench.bench.unchanged", description=__doc__.split("\n\n")[0])
     p.add_argument("folders", nargs="*", type=Path, help="OLD_DIR NEW_DIR: two results folders to compare")
     p.add_argument("--base", help="a git revision: run the suite on it and on the working tree, then compare")
     p.add_argument("--suite", default="quick")

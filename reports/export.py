@@ -9,9 +9,9 @@ from xml.sax.saxutils import quoteattr
 import meshio
 import numpy as np
 
-from analysis.metrics import vertex_velocities
-from scenarios.atomic import write_text_atomic
-from solvers.trajectory import Trajectory
+from frictionbench.analysis.metrics import vertex_velocities
+from frictionbench.scenarios.atomic import write_text_atomic
+from frictionbench.solvers.trajectory import Trajectory
 
 
 def export_vtu_series(traj: Trajectory, out_dir: str | os.PathLike, name: str = "frame") -> Path:

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reports.interactive import text, typed_array
-from scenarios.meshes import bbox_diagonal
-from scenarios.model import Plane
-from solvers.trajectory import Trajectory
+from frictionbench.reports.interactive import text, typed_array
+from frictionbench.scenarios.meshes import bbox_diagonal
+from frictionbench.scenarios.model import Plane
+from frictionbench.solvers.trajectory import Trajectory
 
 #: Colours of the distance: pale at zero, red at the largest distance shown.
 DISTANCE_COLORSCALE = [[0.0, "#dfe7f2"], [0.35, "#9ec5e8"], [0.7, "#f4a259"], [1.0, "#b2182b"]]

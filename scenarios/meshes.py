@@ -1,6 +1,6 @@
 """Tetrahedral meshes: the `TetMesh` type, validation, the mesh catalogue, file loading and the mesh cache.
 
-Catalogue meshes (`catalogue()` lists names and resolutions; `scenarios.meshgen` builds them):
+Catalogue meshes (`catalogue()` lists names and resolutions; `frictionbench.scenarios.meshgen` builds them):
 - `cheese`: a 60 degree wedge of a 0.5 m radius, 0.22 m high cylinder with five spherical holes, every one
   cutting the surface: a tunnel through top and bottom (so the surface has genus 1) and dents in the top, a
   flat side, the curved side and the bottom. Apex edge on the y axis, bottom at y = 0. TetWild.
@@ -16,7 +16,7 @@ so they are stored as .npz: `coarse` and `coarse_alt` ship in `scenarios/meshes/
 on first use into `$FRICTIONBENCH_CACHE/meshes/` (default `~/.cache/frictionbench/meshes/`), keyed by a hash
 of the recipe (`Recipe.key`); `TetMesh.digest()` identifies a mesh's content. After TetWild, boundary
 vertices are snapped onto the exact shape (flat faces come out flat, sphere vertices on the sphere).
-Structured meshes are rebuilt on each load. `python -m scenarios.meshes --help` builds cache entries and
+Structured meshes are rebuilt on each load. `python -m frictionbench.scenarios.meshes --help` builds cache entries and
 rewrites the shipped files.
 """
 
@@ -37,10 +37,10 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from scenarios import meshgen
-from scenarios.atomic import atomic_open
-from scenarios.errors import MeshError
-from scenarios.model import MeshSpec
+from frictionbench.scenarios import meshgen
+from frictionbench.scenarios.atomic import atomic_open
+from frictionbench.scenarios.errors import MeshError
+from frictionbench.scenarios.model import MeshSpec
 
 Array = np.ndarray
 
@@ -576,7 +576,7 @@ def _version(distribution: str) -> str:
 
 def _main(argv: list[str] | None = None) -> None:
     """Build catalogue meshes (stored ones into the cache) or rewrite shipped files; print their sizes."""
-    parser = argparse.ArgumentParser(prog="python -m scenarios.meshes", description=_main.__doc__)
+    parser = argparse.ArgumentParser(prog="python -m frictionbench.scenarios.meshes", description=_main.__doc__)
     parser.add_argument("entries", nargs="*", metavar="NAME/RESOLUTION", help="catalogue entries to build")
     parser.add_argument("--ship", action="store_true",
                         help="regenerate the shipped files of the entries (default: every shipped entry)")

@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-from scenarios.errors import ScenarioError
-from scenarios.model import MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.model import MeshSpec, Scenario, TimeSpec
 
 #: Most time steps one run may take without an override (a full-space step costs 1 ms to 1 s on the CPU).
 MAX_STEPS = 100_000
@@ -92,7 +92,7 @@ def check_runs(runs: Iterable[tuple[Scenario, MeshSpec]], *, allow_large: bool =
     runs = list(runs)
     for scenario, _ in runs:
         check_resources(scenario, None)
-    from scenarios.meshes import load_mesh
+    from frictionbench.scenarios.meshes import load_mesh
 
     vertices: dict[MeshSpec, int] = {}
     for scenario, mesh in runs:

@@ -1,6 +1,6 @@
 """The static simulation `Model` built from a scenario and a mesh (`build_model`), and the initial `State`.
 
-The `Model` and `State` classes are in `solvers.scene` (below the physics, which reads the Model); they are
+The `Model` and `State` classes are in `frictionbench.solvers.scene` (below the physics, which reads the Model); they are
 imported here for the many callers that build a model and its initial state.
 """
 
@@ -10,14 +10,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from scenarios.meshes import TetMesh
-from scenarios.model import Scenario
-from solvers.integrators import get_integrator
-from solvers.physics.contact import auto_penalty_stiffness
-from solvers.physics.inertia import lumped_mass
-from solvers.physics.material import shape_matrices, snh_parameters
-from solvers.physics.viscosity import viscosity_for_damping_ratio
-from solvers.scene import Model, State
+from frictionbench.scenarios.meshes import TetMesh
+from frictionbench.scenarios.model import Scenario
+from frictionbench.solvers.integrators import get_integrator
+from frictionbench.solvers.physics.contact import auto_penalty_stiffness
+from frictionbench.solvers.physics.inertia import lumped_mass
+from frictionbench.solvers.physics.material import shape_matrices, snh_parameters
+from frictionbench.solvers.physics.viscosity import viscosity_for_damping_ratio
+from frictionbench.solvers.scene import Model, State
 
 
 def active_terms(scenario: Scenario) -> tuple[str, ...]:

@@ -14,7 +14,7 @@ from typing import Protocol
 
 import numpy as np
 
-from solvers.step_stats import StepStats
+from frictionbench.solvers.step_stats import StepStats
 
 #: Round-off allowance of the Armijo test, relative to |E|: a trial point may exceed the sufficient-decrease line by
 #: this much. Larger (1e-12 was tried) lets Newton cycle between the kinks of the penalty and friction laws (their

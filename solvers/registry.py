@@ -1,4 +1,4 @@
-"""The solver registry: solver name -> its `solvers.contract.Solver` class, the one place solvers are listed.
+"""The solver registry: solver name -> its `frictionbench.solvers.contract.Solver` class, the one place solvers are listed.
 
 Entries are import paths (`module:Class`), imported on first use, so that torch and taichi load only when a
 reduced solver runs, and so that a worker process can import a solver registered elsewhere (`entries`,
@@ -18,16 +18,16 @@ import importlib.metadata
 import importlib.util
 from functools import cache
 
-from solvers.contract import Solver
+from frictionbench.solvers.contract import Solver
 
 #: The entry-point group through which an installed package registers solvers.
 ENTRY_POINT_GROUP = "frictionbench.solvers"
 
 _ENTRIES: dict[str, str] = {
-    "full": "solvers.full.plugin:FullSpace",
-    "licrom": "solvers.licrom.plugins:Licrom",
-    "pod": "solvers.licrom.plugins:Pod",
-    "affine": "solvers.licrom.plugins:Affine",
+    "full": "frictionbench.solvers.full.plugin:FullSpace",
+    "licrom": "frictionbench.solvers.licrom.plugins:Licrom",
+    "pod": "frictionbench.solvers.licrom.plugins:Pod",
+    "affine": "frictionbench.solvers.licrom.plugins:Affine",
 }
 
 

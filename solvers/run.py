@@ -6,13 +6,13 @@ import time
 
 import numpy as np
 
-from scenarios.meshes import TetMesh, load_mesh
-from scenarios.model import MeshSpec, Scenario
-from solvers.step_stats import stats_summary
-from solvers.model import State, build_model, initial_state
-from solvers.registry import get_solver
-from solvers.simulate import Diverged, simulate
-from solvers.trajectory import Trajectory
+from frictionbench.scenarios.meshes import TetMesh, load_mesh
+from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.solvers.step_stats import stats_summary
+from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.registry import get_solver
+from frictionbench.solvers.simulate import Diverged, simulate
+from frictionbench.solvers.trajectory import Trajectory
 
 
 class Skipped(RuntimeError):

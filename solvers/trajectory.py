@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.atomic import atomic_open
+from frictionbench.scenarios.atomic import atomic_open
 
 
 @dataclass

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 from threadpoolctl import threadpool_limits
 
-import solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
-from scenarios.meshes import load_mesh
-from scenarios.model import MeshSpec
+import frictionbench.solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.scenarios.model import MeshSpec
 
 threadpool_limits(1)
 

@@ -10,14 +10,14 @@ from typing import Any
 import numpy as np
 import tomli_w
 
-from scenarios.model import Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
+from frictionbench.scenarios.model import Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
 
 G = 9.81
 
 
 def block_drop(resolution: str | None = "coarse", clearance: float | None = 0.01, dt: float | None = 0.01,
                duration: float | None = 0.05, **tables: Any) -> dict[str, Any]:
-    """A scene's tables (the `scenarios.load` schema, without a name): the block mesh at `resolution`,
+    """A scene's tables (the `frictionbench.scenarios.load` schema, without a name): the block mesh at `resolution`,
     `clearance` [m] above the default plane, stepped by `dt` [s] for `duration` [s]; None leaves a value to the
     loader's default (a table left empty is left out); `tables` add or replace tables (material={...})."""
     scene = {"mesh": {"name": "block", "resolution": resolution}, "initial": {"clearance": clearance},
@@ -33,7 +33,7 @@ def mu_axis(*values: float) -> dict[str, Any]:
 
 def suite_tables(name: str, base: Mapping[str, Any] | None, *axes: Mapping[str, Any], description: str | None = None,
           **tables: Any) -> dict[str, Any]:
-    """A suite's tables (`scenarios.suites` format): its `base` scene (None: none), `axes` in order, and the other
+    """A suite's tables (`frictionbench.scenarios.suites` format): its `base` scene (None: none), `axes` in order, and the other
     tables (split, truth, extra) as given."""
     header = {"name": name} | ({"description": description} if description is not None else {})
     return ({"suite": header} | ({"base": dict(base)} if base is not None else {})
@@ -62,7 +62,7 @@ def assert_ranges_match_one_launch(solver, kernel, inputs: list, offsets: dict[i
     """A per-element Hessian kernel launched over element ranges from 1 and 2 threads (`ElementRanges`) fills
     solver.elem_blocks bitwise as one launch does, at its first launch (ranges in turn) and later ones (threads);
     `inputs` end before the output blocks, `offsets` as `ElementRanges.launch` takes them."""
-    from solvers.full.assembly import ElementRanges
+    from frictionbench.solvers.full.assembly import ElementRanges
 
     ref = None
     for threads in (1, 2):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from analysis.derived import remeshing_summary, with_remesh_ratio
+from frictionbench.analysis.derived import remeshing_summary, with_remesh_ratio
 
 
 def row(scenario: str, mesh: str, err: float, remesh: str = "", status: str = "ok") -> dict:

@@ -7,7 +7,7 @@ import stat
 
 import pytest
 
-from scenarios.atomic import atomic_open, write_json_atomic, write_text_atomic
+from frictionbench.scenarios.atomic import atomic_open, write_json_atomic, write_text_atomic
 
 
 def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path) -> None:

@@ -1,4 +1,4 @@
-"""The browser the report checks need (issue 14): README command 2 runs `python -m reports.browser_check
+"""The browser the report checks need (issue 14): README command 2 runs `python -m frictionbench.reports.browser_check
 --install`, which installs Debian's Chromium when none is found; without one the check fails loudly, never
 skipped. A machine without Chromium is simulated: an empty PATH, or FRICTIONBENCH_CHROMIUM naming no file, and a
 stand-in apt-get that records its calls."""
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from reports import browser_check
-from reports.browser_check import ENV_VAR, BrowserMissing, check_report, install_chromium
+from frictionbench.reports import browser_check
+from frictionbench.reports.browser_check import ENV_VAR, BrowserMissing, check_report, install_chromium
 
 CHMOD = shutil.which("chmod")
 

@@ -7,11 +7,11 @@ import pytest
 import skfem
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from scenarios.meshes import load_mesh
-from scenarios.model import Material, MeshSpec, Scenario
-from solvers.full.solver import FullSpaceSolver
-from solvers.full.static import static_equilibrium
-from solvers.model import build_model
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.scenarios.model import Material, MeshSpec, Scenario
+from frictionbench.solvers.full.solver import FullSpaceSolver
+from frictionbench.solvers.full.static import static_equilibrium
+from frictionbench.solvers.model import build_model
 
 E, NU, RHO, G = 1e9, 0.3, 1000.0, 9.81
 

@@ -23,12 +23,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.runner import Task, Variant, run_suite, run_tasks
-from bench.store import RunStore
-from bench.variants import LICROM
-from scenarios.suites import load_suite
-from solvers.trajectory import Trajectory
-from solvers.warp_runtime import cache_root
+from frictionbench.bench.runner import Task, Variant, run_suite, run_tasks
+from frictionbench.bench.store import RunStore
+from frictionbench.bench.variants import LICROM
+from frictionbench.scenarios.suites import load_suite
+from frictionbench.solvers.trajectory import Trajectory
+from frictionbench.solvers.warp_runtime import cache_root
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -150,7 +150,7 @@ def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
     """The quick suite's references (one training member, the held-out one) and two reduced variants (a LiCROM
     checkpoint and a POD basis, both trained on the client and carried to the workers): the client's store gets
     every run, identical to a process-pool run's (trajectories, bases, metrics). The full-space runs are bitwise
-    equal (MKL's reproducible mode, `solvers.linalg`); a reduced run's dense products (torch evaluating the neural
+    equal (MKL's reproducible mode, `frictionbench.solvers.linalg`); a reduced run's dense products (torch evaluating the neural
     field's basis, BLAS) may round differently in a worker whose thread pools Dask's nanny started single-threaded
     than in one limited at run time, so its basis and states are compared to round-off (1e-12 of their size)."""
     variants = [Variant("licrom", LICROM | {"epochs": 2}, label="r20"), Variant("pod", {"r": 8}, label="r8")]

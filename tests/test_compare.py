@@ -11,13 +11,13 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.cli import main
-from bench.compare import (CompareError, compare_results, default_rules, read_results, regressions,
+from frictionbench.bench.cli import main
+from frictionbench.bench.compare import (CompareError, compare_results, default_rules, read_results, regressions,
                            with_tolerances)
-from bench.gates import load_gates
-from bench.runner import run_suite
-from reports.browser_check import check_report
-from reports.html import comparison_section
+from frictionbench.bench.gates import load_gates
+from frictionbench.bench.runner import run_suite
+from frictionbench.reports.browser_check import check_report
+from frictionbench.reports.html import comparison_section
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 

@@ -7,14 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.model import State, build_model, initial_state
-from solvers.physics import contact as pc
-from solvers.physics import friction as pf
-from solvers.physics import material as pm
-from solvers.physics.terms import StepData
-from solvers.simulate import simulate
+from frictionbench.scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.physics import contact as pc
+from frictionbench.solvers.physics import friction as pf
+from frictionbench.solvers.physics import material as pm
+from frictionbench.solvers.physics.terms import StepData
+from frictionbench.solvers.simulate import simulate
 
 from scenes import G, com_series, incline
 

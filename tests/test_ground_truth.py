@@ -11,17 +11,17 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.metrics import error_over_time, pos_rmse_rel, proj_rmse_rel
-from analysis.truth import certified_horizon, richardson
-from bench.cli import main
-from bench.compare import compare_results
-from bench.gates import check
-from bench.runner import Variant, run_suite
-from bench.variants import DT_HALF
-from bench.store import RunStore
-from scenarios.errors import ScenarioError
-from scenarios.suites import load_suite, suite_from_dict
-from solvers.integrators import BackwardEuler
+from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel, proj_rmse_rel
+from frictionbench.analysis.truth import certified_horizon, richardson
+from frictionbench.bench.cli import main
+from frictionbench.bench.compare import compare_results
+from frictionbench.bench.gates import check
+from frictionbench.bench.runner import Variant, run_suite
+from frictionbench.bench.variants import DT_HALF
+from frictionbench.bench.store import RunStore
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.suites import load_suite, suite_from_dict
+from frictionbench.solvers.integrators import BackwardEuler
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -162,7 +162,7 @@ def test_a_truth_is_certified_up_to_the_frame_where_its_two_finest_runs_part(tmp
 
 
 def _report(out: Path) -> str:
-    from bench.reporting import build_report
+    from frictionbench.bench.reporting import build_report
 
     return build_report(out).read_text(encoding="utf-8")
 
@@ -211,7 +211,7 @@ def test_the_shipped_suites_with_a_truth():
 
 
 def test_the_deepest_ladder_run_passes_the_resource_guard_before_any_work():
-    from bench.runner import guard_resources, truth_config
+    from frictionbench.bench.runner import guard_resources, truth_config
 
     d = _suite_dict(depth=5, integrator="backward-euler")
     d["base"]["time"] = {"dt": 1e-4, "duration": 1.0}  # 10,000 steps; the ladder's deepest run takes 320,000
@@ -252,8 +252,8 @@ def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):
 
 @pytest.mark.parametrize("name", ["quick", "paper"])
 def test_shipped_truths_pass_the_guard(name):
-    from bench.cli import parse_variants
-    from bench.runner import guard_resources, truth_config
+    from frictionbench.bench.cli import parse_variants
+    from frictionbench.bench.runner import guard_resources, truth_config
 
     suite = load_suite(name)
     guard_resources(suite, parse_variants(None, suite=name), truth=truth_config(suite))

@@ -9,16 +9,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from analysis.metrics import stability, volume_ratio
-from scenarios.meshes import bbox_diagonal
-from scenarios.suites import load_suite
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.model import State, build_model, resolved
-from solvers.physics.contact import auto_penalty_stiffness
-from solvers.physics.friction import creep_speed
-from solvers.run import run_scenario
-from solvers.simulate import MAX_RETRY_DEPTH, advance, simulate
-from solvers.step_stats import StepStats
+from frictionbench.analysis.metrics import stability, volume_ratio
+from frictionbench.scenarios.meshes import bbox_diagonal
+from frictionbench.scenarios.suites import load_suite
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.model import State, build_model, resolved
+from frictionbench.solvers.physics.contact import auto_penalty_stiffness
+from frictionbench.solvers.physics.friction import creep_speed
+from frictionbench.solvers.run import run_scenario
+from frictionbench.solvers.simulate import MAX_RETRY_DEPTH, advance, simulate
+from frictionbench.solvers.step_stats import StepStats
 
 from scenes import G
 
@@ -108,7 +108,7 @@ def test_retries_stop_at_the_deepest_halving():
 
 
 def test_retrying_rescues_most_steps_of_a_newton_starved_of_iterations(block, monkeypatch):
-    import solvers.simulate as simulate_module
+    import frictionbench.solvers.simulate as simulate_module
 
     sc = HARD["v5"].scenario
     sc = replace(sc, mesh=replace(sc.mesh, name="block"), time=replace(sc.time, duration=0.2))

@@ -19,11 +19,11 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bench.cli import main
-from scenarios.errors import MeshError, ScenarioError
-from scenarios.meshes import load_mesh, make_mesh
-from scenarios.model import MeshSpec
-from scenarios.suites import suite_from_dict
+from frictionbench.bench.cli import main
+from frictionbench.scenarios.errors import MeshError, ScenarioError
+from frictionbench.scenarios.meshes import load_mesh, make_mesh
+from frictionbench.scenarios.model import MeshSpec
+from frictionbench.scenarios.suites import suite_from_dict
 
 from scenes import block_drop, mu_axis, suite_tables
 
@@ -101,7 +101,7 @@ SUITE_TOML = tomli_w.dumps(suite_tables(
                      lambda c: SUITE_TOML.encode()[:c[0]] + c[1] + SUITE_TOML.encode()[c[0] + 1:])))
 def test_random_and_truncated_suite_files_raise_only_scenario_errors(tmp_path_factory: pytest.TempPathFactory,
                                                                     content: bytes) -> None:
-    from scenarios.suites import load_suite
+    from frictionbench.scenarios.suites import load_suite
 
     path = tmp_path_factory.mktemp("suite") / "s.toml"
     path.write_bytes(content)

@@ -12,15 +12,15 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from scenarios.errors import ScenarioError
-from scenarios.load import scenario_from_dict
-from scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec, integrator_names
-from solvers.baselines import affine_basis
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.integrators import BDF2, INTEGRATORS, BackwardEuler, get_integrator
-from solvers.licrom.reduced import ReducedSolver
-from solvers.model import State, build_model, initial_state
-from solvers.simulate import simulate
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.load import scenario_from_dict
+from frictionbench.scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec, integrator_names
+from frictionbench.solvers.baselines import affine_basis
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.integrators import BDF2, INTEGRATORS, BackwardEuler, get_integrator
+from frictionbench.solvers.licrom.reduced import ReducedSolver
+from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.simulate import simulate
 
 from scenes import G
 
@@ -125,8 +125,8 @@ def test_a_retried_bdf2_step_restarts_from_backward_euler_and_keeps_the_history_
 
 
 def test_the_bdf2_variant_set_runs_the_reference_solver_under_bdf2():
-    from bench.cli import parse_variants
-    from bench.runner import REFERENCE
+    from frictionbench.bench.cli import parse_variants
+    from frictionbench.bench.runner import REFERENCE
 
     (variant,) = parse_variants("bdf2")
     sc = variant.scenario(Scenario(name="x", mesh=MeshSpec("block", "coarse")))
@@ -215,9 +215,9 @@ def test_an_unknown_integrator_is_refused_naming_the_field_the_value_and_the_kno
 
 
 def test_the_scenario_loader_says_so_when_no_integrator_is_registered():
-    """The bottom layer knows the names only from `solvers.integrators`: loading a scenario without it is a clear
+    """The bottom layer knows the names only from `frictionbench.solvers.integrators`: loading a scenario without it is a clear
     error, not a scenario that skipped validation."""
-    code = ("import scenarios.load as L\ntry:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n"
+    code = ("import frictionbench.scenarios.load as L\ntry:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n"
             "    print(e)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert "import solvers.integrators" in done.stdout
+    assert "import frictionbench.solvers.integrators" in done.stdout

@@ -1,9 +1,14 @@
 """The layers point one way: scenarios <- solvers <- analysis <- reports <- bench (import-linter contracts in
-pyproject.toml). A package that imports one above it breaks the build here, not by convention."""
+pyproject.toml). A package that imports one above it breaks the build here, not by convention.
+
+The checkout maps the subpackages of `frictionbench` from its top-level folders (pyproject's package-dir), while
+import-linter reads a package from its own folder: the contracts run on a copy of the sources laid out as installed
+(`lint`)."""
 
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -16,10 +21,22 @@ LINT = ("from importlinter.cli import lint_imports; "
         "raise SystemExit(lint_imports(config_filename='pyproject.toml', no_cache=True, no_logo=True))")
 
 
-def lint(folder: Path) -> subprocess.CompletedProcess:
-    """Run the contracts of `folder`/pyproject.toml on the packages in `folder` (they come first on the path)."""
-    env = os.environ | {"PYTHONPATH": str(folder)}
-    return subprocess.run([sys.executable, "-c", LINT], cwd=folder, env=env, capture_output=True, text=True,
+def subpackages(folder: Path = ROOT) -> list[str]:
+    """The subpackages of `frictionbench` in a checkout: its top-level folders with an __init__.py."""
+    return sorted(p.parent.name for p in folder.glob("*/__init__.py") if p.parent.name != "frictionbench")
+
+
+def lint(checkout: Path, tmp_path: Path) -> subprocess.CompletedProcess:
+    """Run the contracts of `checkout`/pyproject.toml on the checkout's sources, copied into
+    tmp_path/installed/frictionbench/<subpackage> (they come first on the path)."""
+    installed = tmp_path / "installed"
+    shutil.copytree(checkout / "frictionbench", installed / "frictionbench")
+    for name in subpackages(checkout):
+        shutil.copytree(checkout / name, installed / "frictionbench" / name,
+                        ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(checkout / "pyproject.toml", installed / "pyproject.toml")
+    env = os.environ | {"PYTHONPATH": str(installed)}
+    return subprocess.run([sys.executable, "-c", LINT], cwd=installed, env=env, capture_output=True, text=True,
                           timeout=300, check=False)
 
 
@@ -28,32 +45,36 @@ def contracts() -> dict:
     return tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["importlinter"]
 
 
-def test_the_layer_contracts_are_kept() -> None:
-    done = lint(ROOT)
+def test_the_layer_contracts_are_kept(tmp_path: Path) -> None:
+    done = lint(ROOT, tmp_path)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "0 broken" in done.stdout
 
 
 def test_every_package_of_the_project_is_in_the_layers() -> None:
-    """A new top-level package outside the layers would escape the contract."""
-    packages = {p.parent.name for p in ROOT.glob("*/__init__.py")}
+    """A new top-level package outside the layers would escape the contract; the one import name is the root."""
     config = contracts()
     layered = {name.strip() for layer in config["contracts"][0]["layers"] for name in layer.split("|")}
-    assert packages == set(config["root_packages"]) == layered
+    assert config["root_packages"] == ["frictionbench"] == config["contracts"][0]["containers"]
+    assert set(subpackages()) == layered
 
 
 def layout(folder: Path) -> None:
-    """An empty copy of the project's layout in `folder`: pyproject.toml, every root package and every module the
-    contracts name (a package where the project has one)."""
+    """An empty copy of the checkout's layout in `folder`: pyproject.toml, frictionbench/, every subpackage folder
+    and every module the contracts name (a package where the project has one), `frictionbench.X.Y` at X/Y."""
+    folder.mkdir(parents=True, exist_ok=True)
     (folder / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text(encoding="utf-8"), encoding="utf-8")
-    modules = set(contracts()["root_packages"])
+    modules = {f"frictionbench.{name}" for name in subpackages()}
     for contract in contracts()["contracts"]:
         for container in contract.get("containers", []):
             modules |= {f"{container}.{name.strip()}" for layer in contract["layers"] for name in layer.split("|")}
         modules |= set(contract.get("source_modules", [])) | set(contract.get("forbidden_modules", []))
+    (folder / "frictionbench").mkdir()
+    (folder / "frictionbench" / "__init__.py").write_text("")
     for module in sorted(modules):
-        path = folder.joinpath(*module.split("."))
-        if ROOT.joinpath(*module.split(".")).is_dir():
+        parts = module.split(".")[1:]
+        path = folder.joinpath(*parts)
+        if ROOT.joinpath(*parts).is_dir():
             path.mkdir(parents=True, exist_ok=True)
             (path / "__init__.py").write_text("")
         else:
@@ -62,22 +83,26 @@ def layout(folder: Path) -> None:
 
 def test_an_import_against_the_layers_is_a_failure(tmp_path: Path) -> None:
     """The same contracts on a copy of the layout where analysis imports bench: lint fails and names the import."""
-    layout(tmp_path)
-    (tmp_path / "analysis" / "metrics.py").write_text("import bench.runner\n")
-    done = lint(tmp_path)
+    checkout = tmp_path / "checkout"
+    layout(checkout)
+    (checkout / "analysis" / "metrics.py").write_text("import frictionbench.bench.runner\n")
+    done = lint(checkout, tmp_path)
     assert done.returncode != 0
-    assert "analysis.metrics -> bench.runner" in done.stdout
+    assert "frictionbench.analysis.metrics -> frictionbench.bench.runner" in done.stdout
 
 
-@pytest.mark.parametrize("backend", ["solvers.full.solver", "solvers.licrom.reduced", "solvers.model"])
+@pytest.mark.parametrize("backend", ["frictionbench.solvers.full.solver", "frictionbench.solvers.licrom.reduced",
+                                     "frictionbench.solvers.model"])
 def test_physics_that_imports_a_backend_or_the_model_builder_is_a_failure(tmp_path: Path, backend: str) -> None:
     """A physics term that names a backend (even only for type checking) or imports the model builder (the old
     import circle solvers.model -> physics -> solvers.model) breaks the contracts."""
-    layout(tmp_path)
-    (tmp_path / "solvers" / "physics" / "terms.py").write_text(
+    checkout = tmp_path / "checkout"
+    layout(checkout)
+    (checkout / "solvers" / "physics" / "terms.py").write_text(
         f"from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import {backend}\n")
-    for module in (backend, "solvers.model"):
-        tmp_path.joinpath(*module.split(".")).with_suffix(".py").write_text("import solvers.physics.terms\n")
-    done = lint(tmp_path)
+    for module in (backend, "frictionbench.solvers.model"):
+        checkout.joinpath(*module.split(".")[1:]).with_suffix(".py").write_text(
+            "import frictionbench.solvers.physics.terms\n")
+    done = lint(checkout, tmp_path)
     assert done.returncode != 0
-    assert f"solvers.physics.terms -> {backend}" in done.stdout
+    assert f"frictionbench.solvers.physics.terms -> {backend}" in done.stdout

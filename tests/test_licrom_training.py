@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import torch
 
-from solvers.baselines import N_AFFINE, affine_fields, project
-from solvers.licrom.train import (
+from frictionbench.solvers.baselines import N_AFFINE, affine_fields, project
+from frictionbench.solvers.licrom.train import (
     CheckpointError, TrainingData, encode, evaluate_basis, load_checkpoint, projection_error,
     TrainSettings, reconstruction_error, train, train_from_trajectories,
 )
-from solvers.trajectory import Trajectory
+from frictionbench.solvers.trajectory import Trajectory
 
 BOX = np.array([1.0, 0.5, 0.3])  # [m]
 # Measured with these settings (r = 6, 60 epochs, 64 points per frame, training seeds 0-7, one thread):

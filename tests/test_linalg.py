@@ -15,16 +15,16 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from bench.cli import resolve_scenario
-from scenarios.meshes import load_mesh
-from scenarios.model import TimeSpec
-from solvers import linalg
-from solvers.full import kernels as K
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.model import build_model
-from solvers.physics.terms import StepData, lagged_at_start
-from solvers.run import run_scenario
-from solvers.simulate import simulate
+from frictionbench.bench.cli import resolve_scenario
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.scenarios.model import TimeSpec
+from frictionbench.solvers import linalg
+from frictionbench.solvers.full import kernels as K
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.model import build_model
+from frictionbench.solvers.physics.terms import StepData, lagged_at_start
+from frictionbench.solvers.run import run_scenario
+from frictionbench.solvers.simulate import simulate
 
 from scenes import assert_ranges_match_one_launch
 
@@ -121,7 +121,7 @@ def test_the_fallback_is_superlu_when_pardiso_is_missing(monkeypatch, block):
 def test_a_failed_import_of_pardiso_falls_back_to_superlu_and_says_why(env, block_import, error):
     code = ("import sys\n"
             + ("sys.modules['pypardiso'] = None\n" if block_import else "")
-            + "from solvers import linalg\n"
+            + "from frictionbench.solvers import linalg\n"
             "f = linalg.make_factoriser('direct', [0, 1], [0], 1)\n"
             "print(f.name, '|', linalg.PARDISO_ERROR)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
@@ -154,7 +154,7 @@ def test_element_ranges_give_bitwise_the_single_launch(contact_hessians):
 
 @needs_pardiso
 def test_the_step_benchmark_breaks_a_contact_step_down_for_each_solver():
-    from bench.benchmark_step import benchmark
+    from frictionbench.bench.benchmark_step import benchmark
 
     records = benchmark(["hard/E1e9"], ["superlu:1", "pardiso:1"], steps=1, settle=1)
     assert [r["linear_solver"] for r in records] == ["superlu", "pardiso"]
@@ -170,7 +170,7 @@ def test_simulate_selects_the_linear_solver_and_stats_json_says_which_ran(tmp_pa
     import json
     from contextlib import redirect_stderr, redirect_stdout
 
-    from bench.cli import main
+    from frictionbench.bench.cli import main
 
     out = tmp_path / "s"
     with redirect_stdout(io.StringIO()):

@@ -8,9 +8,9 @@ import meshio
 import numpy as np
 import pytest
 
-from scenarios import meshes, meshgen
-from scenarios.errors import MeshError
-from scenarios.meshes import (
+from frictionbench.scenarios import meshes, meshgen
+from frictionbench.scenarios.errors import MeshError
+from frictionbench.scenarios.meshes import (
     CHEESE_GENUS,
     CHEESE_SHAPE,
     SHIPPED,
@@ -25,7 +25,7 @@ from scenarios.meshes import (
     read_mesh_file,
     validate_mesh,
 )
-from scenarios.model import MeshSpec
+from frictionbench.scenarios.model import MeshSpec
 
 BOXES = {"block": (0.2, 0.1, 0.2), "beam": (1.0, 0.1, 0.1), "slab": (0.4, 0.02, 0.4)}
 EULER = {"cheese": 2 - 2 * CHEESE_GENUS, "sphere": 2, "block": 2, "beam": 2, "slab": 2}
@@ -167,7 +167,7 @@ def test_shipped_meshes_are_current_and_small(name: str, resolution: str) -> Non
     path = meshes.shipped_path(entry)
     assert path.stat().st_size < 300_000
     with np.load(path) as data:
-        assert str(data["key"]) == entry.key, f"{path} is stale: run `python -m scenarios.meshes --ship`"
+        assert str(data["key"]) == entry.key, f"{path} is stale: run `python -m frictionbench.scenarios.meshes --ship`"
         assert data["tets"].dtype == np.int32 and data["X"].dtype == np.float64
 
 

@@ -7,11 +7,11 @@ import itertools
 import numpy as np
 import pytest
 
-from analysis import metrics
-from scenarios.model import Material, Plane
-from solvers.physics.inertia import lumped_mass
-from solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
-from solvers.trajectory import Trajectory
+from frictionbench.analysis import metrics
+from frictionbench.scenarios.model import Material, Plane
+from frictionbench.solvers.physics.inertia import lumped_mass
+from frictionbench.solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
+from frictionbench.solvers.trajectory import Trajectory
 
 GRAVITY = np.array([0.0, -9.81, 0.0])
 

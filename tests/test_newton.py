@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solvers.newton import Direction, feasible_step, minimise
+from frictionbench.solvers.newton import Direction, feasible_step, minimise
 
 
 class Quartic:

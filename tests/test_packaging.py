@@ -9,7 +9,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from bench.gates import load_gates
+from frictionbench.bench.gates import load_gates
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,9 +35,15 @@ def test_an_installed_wheel_finds_its_gates_away_from_the_source_tree(tmp_path: 
     (wheel,) = (tmp_path / "wheel").glob("frictionbench-*.whl")
     installed = tmp_path / "site"
     with zipfile.ZipFile(wheel) as z:
-        assert "bench/gates.toml" in z.namelist()
+        names = z.namelist()
         z.extractall(installed)
-    code = ("import bench.gates as g, pathlib; gates = g.load_gates(); "
+    # one import name: the wheel's only top-level package is frictionbench, holding every package of the checkout
+    assert {n.split("/")[0] for n in names if ".dist-info/" not in n} == {"frictionbench"}
+    assert "frictionbench/bench/gates.toml" in names
+    checkout_packages = {p.parent.relative_to(ROOT).as_posix() for name in packages
+                         for p in (ROOT / name).rglob("__init__.py")} - {"frictionbench"}
+    assert {f"frictionbench/{p}/__init__.py" for p in checkout_packages} <= set(names)
+    code = ("import frictionbench.bench.gates as g, pathlib; gates = g.load_gates(); "
             "print(len(gates), pathlib.Path(g.__file__).resolve().parent)")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"} | {"PYTHONPATH": str(installed)}
     done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
@@ -45,4 +51,4 @@ def test_an_installed_wheel_finds_its_gates_away_from_the_source_tree(tmp_path: 
     assert done.returncode == 0, done.stderr
     count, where = done.stdout.split()
     assert int(count) == len(load_gates())
-    assert Path(where) == (installed / "bench").resolve()  # the unpacked copy, not this checkout
+    assert Path(where) == (installed / "frictionbench" / "bench").resolve()  # the unpacked copy, not this checkout

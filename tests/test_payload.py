@@ -4,8 +4,8 @@ from __future__ import annotations
 
 
 
-from bench.payload import Artefact, artefact_folders, localised
-from bench.store import RunStore
+from frictionbench.bench.payload import Artefact, artefact_folders, localised
+from frictionbench.bench.store import RunStore
 
 
 def test_an_artefact_is_written_once_where_its_content_says_and_parameters_follow(tmp_path):
@@ -37,9 +37,9 @@ def test_a_task_without_a_result_is_raised_once_the_others_are_stored(tmp_path, 
 
     import pytest
 
-    import bench.runner as runner
-    from bench.runner import Task, run_tasks
-    from scenarios.load import scenario_from_dict
+    import frictionbench.bench.runner as runner
+    from frictionbench.bench.runner import Task, run_tasks
+    from frictionbench.scenarios.load import scenario_from_dict
 
     class InThread(ThreadPoolExecutor):
         share = staticmethod(lambda obj: obj)

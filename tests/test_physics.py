@@ -10,10 +10,10 @@ import pytest
 def rng() -> np.random.Generator:
     return np.random.default_rng(7)
 
-from solvers.physics import contact as pc
-from solvers.physics import friction as pf
-from solvers.physics import inertia as pi
-from solvers.physics import material as pm
+from frictionbench.solvers.physics import contact as pc
+from frictionbench.solvers.physics import friction as pf
+from frictionbench.solvers.physics import inertia as pi
+from frictionbench.solvers.physics import material as pm
 
 
 

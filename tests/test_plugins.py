@@ -14,10 +14,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.runner import Variant, available_variants
-from bench.variants import grid
-from solvers import registry
-from solvers.step_stats import StepStats, stats_summary
+from frictionbench.bench.runner import Variant, available_variants
+from frictionbench.bench.variants import grid
+from frictionbench.solvers import registry
+from frictionbench.solvers.step_stats import StepStats, stats_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSING = "frictionbench_no_such_package"
@@ -48,8 +48,8 @@ TOYPLUG = f'''
 
 import time
 
-from solvers.contract import Solver
-from solvers.step_stats import StepStats
+from frictionbench.solvers.contract import Solver
+from frictionbench.solvers.step_stats import StepStats
 
 
 class Drift(Solver):
@@ -125,7 +125,7 @@ def test_an_installed_package_registers_its_solvers_through_the_entry_point(inst
     drift = registry.get_solver("drift")
     assert drift.__module__ == "toyplug" and drift.name == "drift" and registry.unavailable("drift") is None
     # the repository's own solver keeps its name against a package claiming it
-    assert registry.entries()["full"] == "solvers.full.plugin:FullSpace"
+    assert registry.entries()["full"] == "frictionbench.solvers.full.plugin:FullSpace"
     assert registry.entries()["drift"] == "toyplug:Drift"  # what a worker process registers
 
 
@@ -170,14 +170,14 @@ def test_a_step_record_needs_only_its_wall_time_and_carries_a_solvers_own_counte
 
 def test_the_cli_lists_and_runs_installed_solvers_and_skips_an_unavailable_one(site, tmp_path):
     env = _env(site)
-    listing = subprocess.run([sys.executable, "-m", "bench.cli", "list"], cwd=tmp_path, env=env,
+    listing = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "list"], cwd=tmp_path, env=env,
                              capture_output=True, text=True, timeout=300, check=False)
     assert listing.returncode == 0, listing.stderr
     solvers = listing.stdout.split("solvers:\n")[1].splitlines()
     assert "  drift" in solvers and "  full" in solvers
     assert f"  needy    unavailable: needs {MISSING!r}, which is not installed" in solvers
     out = tmp_path / "out"
-    run = subprocess.run([sys.executable, "-m", "bench.cli", "run", "--suite", "verify", "--only", "verify/block_fall",
+    run = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", "verify", "--only", "verify/block_fall",
                           "--solvers", "drift,needy", "--no-truth", "--no-report", "--out", str(out)],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600, check=False)
     assert run.returncode == 0, run.stderr
@@ -192,8 +192,8 @@ def test_the_cli_lists_and_runs_installed_solvers_and_skips_an_unavailable_one(s
 def test_run_with_the_full_space_solver_imports_neither_torch_nor_taichi(tmp_path):
     code = textwrap.dedent(f"""
         import sys
-        from bench.cli import main
-        from bench.variants import variant_set
+        from frictionbench.bench.cli import main
+        from frictionbench.bench.variants import variant_set
         assert [v.solver for v in variant_set("full-sweep")] == ["full"] * 5
         rc = main(["run", "--suite", "verify", "--only", "verify/block_fall", "--solvers", "full", "--no-truth",
                    "--no-report", "--out", {str(tmp_path / "out")!r}])

@@ -9,17 +9,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
-from solvers.baselines import affine_basis, full_basis, pod_basis, standardised_positions
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.licrom import kernels as K
-from solvers.licrom.cubature import cubature_force_error, optimized_cubature, uniform_cubature
-from solvers.licrom.reduced import ReducedModel, ReducedSolver
-from solvers.model import build_model, initial_state, rotation_matrix
-from solvers.physics import contact as pc
-from solvers.physics import friction as pf
-from solvers.physics import material as pm
-from solvers.simulate import simulate
+from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.baselines import affine_basis, full_basis, pod_basis, standardised_positions
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.licrom import kernels as K
+from frictionbench.solvers.licrom.cubature import cubature_force_error, optimized_cubature, uniform_cubature
+from frictionbench.solvers.licrom.reduced import ReducedModel, ReducedSolver
+from frictionbench.solvers.model import build_model, initial_state, rotation_matrix
+from frictionbench.solvers.physics import contact as pc
+from frictionbench.solvers.physics import friction as pf
+from frictionbench.solvers.physics import material as pm
+from frictionbench.solvers.simulate import simulate
 
 from scenes import G, com_series, incline
 

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli import main, resolve_scenario
-from scenarios.meshes import load_mesh
-from scenarios.model import MeshSpec
-from solvers.licrom.plugins import Licrom, Pod
-from solvers.licrom.train import CheckpointError
-from solvers.model import build_model
-from solvers.trajectory import Trajectory
+from frictionbench.bench.cli import main, resolve_scenario
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.scenarios.model import MeshSpec
+from frictionbench.solvers.licrom.plugins import Licrom, Pod
+from frictionbench.solvers.licrom.train import CheckpointError
+from frictionbench.solvers.model import build_model
+from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 

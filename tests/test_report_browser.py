@@ -1,6 +1,6 @@
 """A report opens in a real headless Chromium: no console errors, no network requests, figures drawn, and the
 figures respond: hovering a point of the frontier names its variant, the 3D viewer advances when played.
-(.ci/run also checks the quick suite's own report with `python -m reports.browser_check`.)"""
+(.ci/run also checks the quick suite's own report with `python -m frictionbench.reports.browser_check`.)"""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.metrics import error_over_time
-from bench.runner import run_suite
-from reports.browser_check import CHROMIUM_ARGS, PLOT_TIMEOUT_MS, check_report, require_chromium
-from reports.html import ScenarioRuns, write_report_html
-from scenarios.model import Plane
-from solvers.trajectory import Trajectory
+from frictionbench.analysis.metrics import error_over_time
+from frictionbench.bench.runner import run_suite
+from frictionbench.reports.browser_check import CHROMIUM_ARGS, PLOT_TIMEOUT_MS, check_report, require_chromium
+from frictionbench.reports.html import ScenarioRuns, write_report_html
+from frictionbench.scenarios.model import Plane
+from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 

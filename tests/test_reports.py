@@ -19,25 +19,25 @@ import pandas as pd
 import pytest
 import pyvista
 
-from analysis import metrics
-from analysis.derived import with_remesh_ratio
-from analysis.schema import names
-from analysis.table import (
+from frictionbench.analysis import metrics
+from frictionbench.analysis.derived import with_remesh_ratio
+from frictionbench.analysis.schema import names
+from frictionbench.analysis.table import (
     IDENTITY_COLUMNS,
     PROVENANCE_COLUMNS,
     column_order,
     provenance,
     write_results_csv,
 )
-from reports.export import export_vtu_series
-from reports.headline import headline_table
-from reports.html import ScenarioRuns, write_report_html
-from reports.interactive import plot_div, plotly_js, script_json, typed_array
-from reports.plots import pareto_front
-from reports.viewer import ViewerBudget, decimate_surface, viewer_figure
-from scenarios.meshes import bbox_diagonal
-from scenarios.model import Material, Plane
-from solvers.trajectory import Trajectory
+from frictionbench.reports.export import export_vtu_series
+from frictionbench.reports.headline import headline_table
+from frictionbench.reports.html import ScenarioRuns, write_report_html
+from frictionbench.reports.interactive import plot_div, plotly_js, script_json, typed_array
+from frictionbench.reports.plots import pareto_front
+from frictionbench.reports.viewer import ViewerBudget, decimate_surface, viewer_figure
+from frictionbench.scenarios.meshes import bbox_diagonal
+from frictionbench.scenarios.model import Material, Plane
+from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -118,7 +118,7 @@ def test_results_csv_column_order_and_round_trip(tmp_path: Path, runs) -> None:
 
 
 def test_provenance_fields_without_importing_torch() -> None:
-    code = ("import sys, json; from analysis.table import provenance; p = provenance('cpu', gpu_name=''); "
+    code = ("import sys, json; from frictionbench.analysis.table import provenance; p = provenance('cpu', gpu_name=''); "
             "print(json.dumps({'torch_imported': 'torch' in sys.modules, 'keys': list(p), 'numpy': p['numpy_version'],"
             " 'commit': p['commit']}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
@@ -420,8 +420,8 @@ def test_vtu_series_reads_back(tmp_path: Path, runs) -> None:
 
 
 def test_build_report_shows_the_truth_run_and_errors_against_it(tmp_path: Path, block) -> None:
-    from bench.reporting import build_report
-    from bench.store import RunStore
+    from frictionbench.bench.reporting import build_report
+    from frictionbench.bench.store import RunStore
 
     suite = write_toml(tmp_path / "tiny.toml", suite_tables("tiny", block_drop(clearance=None), mu_axis(0.3),
                                                             description="stored runs"))

@@ -12,13 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import parse_variants
-from bench.runner import guard_resources, run_suite
-from bench.variants import VARIANTS
-from scenarios.errors import ScenarioError
-from scenarios.load import scenario_from_dict
-from scenarios.resources import MAX_STEPS, check_resources, check_runs, stored_bytes, stored_frames
-from scenarios.suites import list_suites, load_suite, suite_from_dict
+from frictionbench.bench.cli import parse_variants
+from frictionbench.bench.runner import guard_resources, run_suite
+from frictionbench.bench.variants import VARIANTS
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.load import scenario_from_dict
+from frictionbench.scenarios.resources import MAX_STEPS, check_resources, check_runs, stored_bytes, stored_frames
+from frictionbench.scenarios.suites import list_suites, load_suite, suite_from_dict
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -30,7 +30,7 @@ def _simulate(tmp_path: Path, time_table: dict[str, float], *extra: str) -> tupl
     scene = write_toml(tmp_path / "scene.toml", {"name": "oversized", "time": time_table})
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "bench.cli", "simulate", str(scene), "--out", str(tmp_path / "out"),
+    done = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "simulate", str(scene), "--out", str(tmp_path / "out"),
                            *extra], capture_output=True, text=True, timeout=60, env=env)
     return done, time.perf_counter() - t0
 

@@ -8,10 +8,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.cli import main
-from bench.runner import Task, run_suite, run_tasks
-from bench.store import RunStore
-from scenarios.suites import load_suite
+from frictionbench.bench.cli import main
+from frictionbench.bench.runner import Task, run_suite, run_tasks
+from frictionbench.bench.store import RunStore
+from frictionbench.scenarios.suites import load_suite
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -66,7 +66,7 @@ def test_dask_executor_runs_the_same_tasks(tmp_path, suite_file):
 
 
 def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_file):
-    from bench.runner import Variant
+    from frictionbench.bench.runner import Variant
 
     variants = [Variant("affine", {}, label="affine12"), Variant("affine", {}, label="affine12-remesh", remesh="alt"),
                 Variant("pod", {"r": 4}, label="r4")]
@@ -84,7 +84,7 @@ def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_f
 
 
 def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_training_mesh():
-    from analysis.derived import with_remesh_ratio
+    from frictionbench.analysis.derived import with_remesh_ratio
 
     def row(scenario, variant, err, remesh="", model=None, status="ok"):
         return {"scenario": scenario, "solver": "licrom", "variant": variant, "model": model or variant,
@@ -100,7 +100,7 @@ def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_trai
 
 
 def test_ref_dt_change_is_the_finest_full_space_run_on_the_reference_mesh():
-    from analysis.derived import with_ref_dt_change
+    from frictionbench.analysis.derived import with_ref_dt_change
 
     def row(scenario, variant, dt, err, solver="full", remesh="", status="ok"):
         return {"scenario": scenario, "solver": solver, "variant": variant, "dt": dt, "pos_rmse_rel": err,
@@ -118,8 +118,8 @@ def test_ref_dt_change_is_the_finest_full_space_run_on_the_reference_mesh():
 
 
 def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tmp_path, suite_file):
-    from bench.runner import Variant
-    from bench.variants import DT_HALF
+    from frictionbench.bench.runner import Variant
+    from frictionbench.bench.variants import DT_HALF
 
     variants = [Variant("full", {}, label="dt2x", dt_scale=2.0), DT_HALF,
                 Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)]
@@ -140,10 +140,10 @@ def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tm
 def test_transfer_reproduces_a_linear_field_exactly(block):
     import numpy as np
 
-    from analysis.transfer import transfer_to_mesh
-    from scenarios.meshes import load_mesh
-    from scenarios.model import MeshSpec
-    from solvers.trajectory import Trajectory
+    from frictionbench.analysis.transfer import transfer_to_mesh
+    from frictionbench.scenarios.meshes import load_mesh
+    from frictionbench.scenarios.model import MeshSpec
+    from frictionbench.solvers.trajectory import Trajectory
 
     other = load_mesh(MeshSpec("block", "coarse_alt"))
     A = np.array([[0.1, 0.02, 0.0], [0.0, -0.05, 0.03], [0.01, 0.0, 0.2]])
@@ -162,7 +162,7 @@ def test_killed_run_resumes_without_recomputing(tmp_path, suite_file):
     import time
 
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", str(suite_file), "--solvers", "full",
+    cmd = [sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", str(suite_file), "--solvers", "full",
            "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.time() + 300
@@ -189,7 +189,7 @@ def test_sigterm_stops_the_workers_with_the_run(tmp_path):
 
     suite = write_toml(tmp_path / "long.toml", SUITE | {"base": block_drop(duration=60.0)})  # minutes per run
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "bench.cli", "run", "--suite", str(suite), "--solvers", "full", "--jobs", "2",
+    cmd = [sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", str(suite), "--solvers", "full", "--jobs", "2",
            "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
@@ -248,8 +248,8 @@ max = 1.01
                    "linear_solver", "mkl_version"):
         assert column in rows
     assert rows.loc[rows["variant"] == "reference", "linear_solver"].isin(["pardiso", "superlu"]).all()
-    from bench.gates import check, load_gates
-    from bench.reporting import build_report
+    from frictionbench.bench.gates import check, load_gates
+    from frictionbench.bench.reporting import build_report
 
     verdicts = check(rows, load_gates(gates), "laws")
     tagged = [v for v in verdicts if v.gate.endswith("[resting]")]
@@ -273,8 +273,8 @@ def test_only_runs_the_matching_members(tmp_path, suite_file):
 @pytest.mark.parametrize("suite", ["quick", "paper", "paper-damped", "hard"])
 def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
     """A gate on a label no default run produces would only ever fail as 'matched no row' after a long run."""
-    from bench.cli import parse_variants
-    from bench.gates import load_gates
+    from frictionbench.bench.cli import parse_variants
+    from frictionbench.bench.gates import load_gates
 
     labels = {"full/reference"} | {f"{v.solver}/{v.label or v.solver}" for v in parse_variants(None, suite=suite)}
     for gate in load_gates():

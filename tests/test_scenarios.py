@@ -15,11 +15,11 @@ import tomli_w
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from scenarios import load
-from scenarios.errors import ScenarioError
-from scenarios.load import load_scenario, scenario_from_dict, scenario_hash, scenario_to_dict
-from scenarios.model import Effects
-from scenarios.suites import list_suites, load_suite, suite_from_dict
+from frictionbench.scenarios import load
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.load import load_scenario, scenario_from_dict, scenario_hash, scenario_to_dict
+from frictionbench.scenarios.model import Effects
+from frictionbench.scenarios.suites import list_suites, load_suite, suite_from_dict
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -180,14 +180,14 @@ def test_verify_suite_covers_the_analytic_incline_regimes() -> None:
 
 
 def test_shipped_suites_use_catalogue_names_of_the_mesh_module() -> None:
-    meshes = pytest.importorskip("scenarios.meshes")
+    meshes = pytest.importorskip("frictionbench.scenarios.meshes")
     real = meshes.catalogue()
     for name, resolutions in CATALOGUE.items():
         assert set(resolutions) <= set(real[name])
 
 
 def test_loader_does_not_import_the_mesh_module() -> None:
-    code = "import sys, scenarios.load, scenarios.suites; assert 'scenarios.meshes' not in sys.modules"
+    code = "import sys, frictionbench.scenarios.load, frictionbench.scenarios.suites; assert 'frictionbench.scenarios.meshes' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)
 
 

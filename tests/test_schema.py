@@ -10,18 +10,18 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import schema
-from analysis.rows import collect_rows
-from analysis.schema import (COLUMNS, Column, docs_table, docs_with_table, flag, is_missing, number, stability_metrics,
+from frictionbench.analysis import schema
+from frictionbench.analysis.rows import collect_rows
+from frictionbench.analysis.schema import (COLUMNS, Column, docs_table, docs_with_table, flag, is_missing, number, stability_metrics,
                              truthy)
-from analysis.table import write_results_csv
-from bench.compare import compare_results, default_rules
-from bench.runner import StoreRuns, Task, Variant
-from reports.headline import headline_table
-from reports.html import write_report_html
-from scenarios.model import Effects, Scenario
-from scenarios.suites import Suite, SuiteMember
-from solvers.trajectory import Trajectory
+from frictionbench.analysis.table import write_results_csv
+from frictionbench.bench.compare import compare_results, default_rules
+from frictionbench.bench.runner import StoreRuns, Task, Variant
+from frictionbench.reports.headline import headline_table
+from frictionbench.reports.html import write_report_html
+from frictionbench.scenarios.model import Effects, Scenario
+from frictionbench.scenarios.suites import Suite, SuiteMember
+from frictionbench.solvers.trajectory import Trajectory
 
 DESIGN = Path(__file__).resolve().parents[1] / "docs" / "design.md"
 
@@ -50,7 +50,7 @@ def falling_tet(drop: float) -> Trajectory:
 
 
 class Store:
-    """Stored runs by key, as `bench.store.RunStore.load` gives them."""
+    """Stored runs by key, as `frictionbench.bench.store.RunStore.load` gives them."""
 
     def __init__(self, runs: dict[str, tuple[Trajectory, dict]]) -> None:
         self.runs = runs
@@ -61,7 +61,7 @@ class Store:
 
 def results(tmp_path: Path, drop: float) -> pd.DataFrame:
     """results.csv of one scenario: its reference and a variant that falls `drop` [m] further, built by
-    `analysis.rows.collect_rows` from stored runs through the harness's `StoreRuns`."""
+    `frictionbench.analysis.rows.collect_rows` from stored runs through the harness's `StoreRuns`."""
     sc = Scenario(name="toy", effects=Effects(friction=False))
     member = SuiteMember(sc, "test", {})
     variant = Variant("full", label="slower")
@@ -89,7 +89,7 @@ def test_a_metric_declared_in_the_schema_alone_reaches_results_compare_report_an
 
 def test_the_docs_table_of_metrics_is_the_generated_one() -> None:
     text = DESIGN.read_text(encoding="utf-8")
-    assert docs_with_table(text) == text, "run `python -m analysis.schema` to regenerate it"
+    assert docs_with_table(text) == text, "run `python -m frictionbench.analysis.schema` to regenerate it"
     stale = text.replace("| `pos_rmse_rel` |", "| `pos_rmse` |")
     assert docs_with_table(stale) == text
 

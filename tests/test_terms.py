@@ -1,7 +1,7 @@
 """Physics terms as objects (solvers.physics.terms): each term's numpy reference is consistent (gradient and
 Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, the step hooks
 (`begin_step`, `max_step`) give what the solvers used to compute by name, and a term registered from a test with its
-backends' evaluations (`solvers.full.terms`, `solvers.licrom.terms`) is picked up by every solver."""
+backends' evaluations (`frictionbench.solvers.full.terms`, `frictionbench.solvers.licrom.terms`) is picked up by every solver."""
 
 from __future__ import annotations
 
@@ -11,17 +11,17 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
-from solvers.baselines import affine_basis
-from solvers.full import terms as FT
-from solvers.full.solver import FullSpaceSolver
-from solvers.licrom import terms as LT
-from solvers.licrom.reduced import ReducedSolver
-from solvers.model import Model, build_model, initial_state
-from solvers.newton import feasible_step
-from solvers.physics import terms as T
-from solvers.physics.contact import lagged_pressure
-from solvers.simulate import simulate
+from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.baselines import affine_basis
+from frictionbench.solvers.full import terms as FT
+from frictionbench.solvers.full.solver import FullSpaceSolver
+from frictionbench.solvers.licrom import terms as LT
+from frictionbench.solvers.licrom.reduced import ReducedSolver
+from frictionbench.solvers.model import Model, build_model, initial_state
+from frictionbench.solvers.newton import feasible_step
+from frictionbench.solvers.physics import terms as T
+from frictionbench.solvers.physics.contact import lagged_pressure
+from frictionbench.solvers.simulate import simulate
 
 from scenes import G, incline
 
@@ -120,7 +120,7 @@ class PushLaunch(FT.Launcher):
     def launch(self, x, h, mode, inertia) -> None:
         import warp as wp
 
-        from solvers.full import kernels as K
+        from frictionbench.solvers.full import kernels as K
 
         s = self.solver
         wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[

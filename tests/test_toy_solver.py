@@ -10,11 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.cli import main
-from solvers import registry
-from solvers.contract import Solver, SolverParameterError
-from solvers.model import Model, State
-from solvers.step_stats import StepStats
+from frictionbench.bench.cli import main
+from frictionbench.solvers import registry
+from frictionbench.solvers.contract import Solver, SolverParameterError
+from frictionbench.solvers.model import Model, State
+from frictionbench.solvers.step_stats import StepStats
 
 from scenes import block_drop, suite_tables, write_toml
 
@@ -79,8 +79,8 @@ def test_registering_a_non_solver_fails_clearly():
 
 
 def test_a_scene_whose_integrator_the_solver_lacks_is_skipped_with_the_reason(ballistic):
-    from scenarios.model import MeshSpec, Scenario, TimeSpec
-    from solvers.run import Skipped, run_scenario
+    from frictionbench.scenarios.model import MeshSpec, Scenario, TimeSpec
+    from frictionbench.solvers.run import Skipped, run_scenario
 
     sc = Scenario(name="fall", mesh=MeshSpec("block", "coarse"), plane=None,
                   time=TimeSpec(dt=0.01, duration=0.02, integrator="bdf2"))

@@ -7,10 +7,10 @@ import math
 
 import pytest
 
-from analysis.truth import (AT_MOST, MIN_ORDER, assess_ladder, certified_horizon, decidable, full_space_cost,
+from frictionbench.analysis.truth import (AT_MOST, MIN_ORDER, assess_ladder, certified_horizon, decidable, full_space_cost,
                             ladder_continues, pareto_front, richardson, speedup_equal_accuracy, wall_s_per_sim_s,
                             with_frontier)
-from solvers.integrators import BDF2, BackwardEuler
+from frictionbench.solvers.integrators import BDF2, BackwardEuler
 
 
 def climb(C: float, p: float, dt: float, tol: float, depth: int) -> tuple[list[float], list[float]]:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.unchanged import compare_results, compare_verdicts, main, values_equal
+from frictionbench.bench.unchanged import compare_results, compare_verdicts, main, values_equal
 
 
 def table() -> pd.DataFrame:

@@ -1,8 +1,8 @@
-"""Variant grids are built from a solver's declared parameters (`bench.variants.grid`)."""
+"""Variant grids are built from a solver's declared parameters (`frictionbench.bench.variants.grid`)."""
 
 import pytest
 
-from bench.variants import LICROM, grid, variant_set
+from frictionbench.bench.variants import LICROM, grid, variant_set
 
 
 def test_a_grid_is_the_cartesian_product_of_declared_parameters() -> None:

@@ -10,21 +10,21 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from scenarios.errors import ScenarioError
-from scenarios.load import scenario_from_dict, scenario_hash, scenario_to_dict
-from scenarios.meshes import TetMesh, load_mesh, make_mesh
-from scenarios.meshgen import structured_box
-from scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
-from solvers.baselines import full_basis
-from solvers.full import kernels as K
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.licrom.reduced import ReducedSolver, ReducedState
-from solvers.model import Model, build_model, initial_state, rotation_matrix
-from solvers.physics import material as pm
-from solvers.physics import terms as T
-from solvers.physics import viscosity as pv
-from solvers.run import run_scenario
-from solvers.simulate import simulate
+from frictionbench.scenarios.errors import ScenarioError
+from frictionbench.scenarios.load import scenario_from_dict, scenario_hash, scenario_to_dict
+from frictionbench.scenarios.meshes import TetMesh, load_mesh, make_mesh
+from frictionbench.scenarios.meshgen import structured_box
+from frictionbench.scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.baselines import full_basis
+from frictionbench.solvers.full import kernels as K
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedState
+from frictionbench.solvers.model import Model, build_model, initial_state, rotation_matrix
+from frictionbench.solvers.physics import material as pm
+from frictionbench.solvers.physics import terms as T
+from frictionbench.solvers.physics import viscosity as pv
+from frictionbench.solvers.run import run_scenario
+from frictionbench.solvers.simulate import simulate
 
 from scenes import G, assert_ranges_match_one_launch, com_series, incline
 

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import nnls
 
-from solvers.model import Model
-from solvers.physics.material import deformation_gradient, shape_gradients, snh_pk1
+from frictionbench.solvers.model import Model
+from frictionbench.solvers.physics.material import deformation_gradient, shape_gradients, snh_pk1
 
 Cubature = tuple[np.ndarray, np.ndarray]
 """(tet ids (c,) int64, weights (c,) float64)."""

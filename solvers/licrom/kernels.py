@@ -15,7 +15,7 @@ solvers.warp_runtime.cache_root()/taichi so that the compile cost (seconds) is p
 import numpy as np
 import taichi as ti
 
-from solvers.warp_runtime import cache_root
+from frictionbench.solvers.warp_runtime import cache_root
 
 ENERGY, STRESS, HESSIAN = 0, 1, 2
 """Evaluation modes: Psi only; Psi and P; Psi, P and (dP/dF)_+."""

@@ -1,4 +1,4 @@
-"""Solvers of the reduced family under the solver contract (`solvers.contract`): `licrom` (trained neural field),
+"""Solvers of the reduced family under the solver contract (`frictionbench.solvers.contract`): `licrom` (trained neural field),
 `pod` (mesh-bound SVD modes), `affine` (the 12 affine fields).
 
 Each `setup(model)` builds a `ReducedSolver` (untimed); where a solver needs the suite's training data, its
@@ -19,15 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.atomic import write_json_atomic
-from solvers.baselines import affine_basis, pod_basis, project
-from solvers.contract import Solver
-from solvers.integrators import INTEGRATORS
-from solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
-from solvers.licrom.reduced import ReducedSolver
-from solvers.model import Model, State
-from solvers.step_stats import StepStats
-from solvers.trajectory import Trajectory
+from frictionbench.scenarios.atomic import write_json_atomic
+from frictionbench.solvers.baselines import affine_basis, pod_basis, project
+from frictionbench.solvers.contract import Solver
+from frictionbench.solvers.integrators import INTEGRATORS
+from frictionbench.solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
+from frictionbench.solvers.licrom.reduced import ReducedSolver
+from frictionbench.solvers.model import Model, State
+from frictionbench.solvers.step_stats import StepStats
+from frictionbench.solvers.trajectory import Trajectory
 
 
 class PluginError(ValueError):
@@ -62,7 +62,7 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
 class _Reduced(Solver):
     """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
     Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
-    `projected_gradient`), seed. Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with
+    `projected_gradient`), seed. Every integrator of `frictionbench.solvers.integrators` (the scenario's `time.integrator`) with
     either scheme."""
 
     integrators = tuple(INTEGRATORS)
@@ -81,7 +81,7 @@ class _Reduced(Solver):
         self.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0]))}
         if p["scheme"] == "projected_gradient":
             # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
-            from solvers.model import initial_state
+            from frictionbench.solvers.model import initial_state
 
             limit = solver.projected_gradient_alpha_limit(initial_state(model), model.scenario.time.dt)
             solver.alpha = 0.9 * limit
@@ -154,8 +154,8 @@ def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_d
     if not path.is_file():
         trajs = [Trajectory.load(p) for p in trajectories]
         X, tets = trajs[0].X, trajs[0].tets
-        from solvers.physics.inertia import lumped_mass
-        from solvers.physics.material import shape_matrices
+        from frictionbench.solvers.physics.inertia import lumped_mass
+        from frictionbench.solvers.physics.material import shape_matrices
 
         mass = lumped_mass(shape_matrices(X, tets)[1], tets, len(X), 1.0)
         u = np.concatenate([t.x - t.X for t in trajs])
@@ -173,7 +173,7 @@ def _train_licrom(shape: str, trajectories: list[Path], params: dict, models_dir
                   suite: str) -> dict:
     """Train the neural field of one shape on its training trajectories (cached under models_dir), and, for an
     optimised cubature, select it on the training mesh; returns `shape`, `checkpoint` (and `cubature_file`)."""
-    from solvers.licrom.train import TrainSettings, evaluate_basis, load_checkpoint, train_from_trajectories
+    from frictionbench.solvers.licrom.train import TrainSettings, evaluate_basis, load_checkpoint, train_from_trajectories
 
     settings = {k: params.get(k) if params.get(k) is not None else d
                 for k, d in (("r", 20), ("epochs", 100), ("affine", False), ("seed", 0), ("points", 512))}
@@ -201,9 +201,9 @@ def _train_licrom(shape: str, trajectories: list[Path], params: dict, models_dir
 
 def _model_of(traj: Trajectory) -> Model:
     """A model of the training mesh (elasticity only) for cubature selection."""
-    from scenarios.meshes import make_mesh
-    from scenarios.model import Scenario
-    from solvers.model import build_model
+    from frictionbench.scenarios.meshes import make_mesh
+    from frictionbench.scenarios.model import Scenario
+    from frictionbench.solvers.model import build_model
 
     return build_model(Scenario(name="training-mesh", plane=None), make_mesh(traj.X, traj.tets, "training"))
 
@@ -224,7 +224,7 @@ class Licrom(_Reduced):
 
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
         """The network's basis at this mesh's rest positions, the stored optimised cubature, the training time."""
-        from solvers.licrom.train import evaluate_basis, load_checkpoint
+        from frictionbench.solvers.licrom.train import evaluate_basis, load_checkpoint
 
         p = self.params
         self.checkpoint = load_checkpoint(p["checkpoint"], expected_r=p["r"])

@@ -1,5 +1,5 @@
-"""The reduced backend's evaluation of the body terms (`solvers.physics.terms.BodyTerm`: inertia, gravity,
-elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
+"""The reduced backend's evaluation of the body terms (`frictionbench.solvers.physics.terms.BodyTerm`: inertia, gravity,
+elasticity, viscosity) in the latent coordinates of a `frictionbench.solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
 per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). The point terms (contact, damping,
 friction) need no entry: the solver evaluates them at its contact sample points by their `at_points`."""
 
@@ -10,14 +10,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from solvers.licrom import kernels as K
-from solvers.physics.inertia import Gravity, Inertia
-from solvers.physics.material import Elasticity
-from solvers.physics.terms import Evaluation, Term, TermTable
-from solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
+from frictionbench.solvers.licrom import kernels as K
+from frictionbench.solvers.physics.inertia import Gravity, Inertia
+from frictionbench.solvers.physics.material import Elasticity
+from frictionbench.solvers.physics.terms import Evaluation, Term, TermTable
+from frictionbench.solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
 
 if TYPE_CHECKING:
-    from solvers.licrom.reduced import ReducedSolver, ReducedStep
+    from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep
 
 
 class BodyEvaluation(ABC):

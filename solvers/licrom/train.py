@@ -33,13 +33,13 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from scenarios.atomic import atomic_open
-from scenarios.meshes import bbox_diagonal
-from solvers.baselines import N_AFFINE, project
-from solvers.licrom.network import NeuralField, PointNetEncoder, fit_affine
-from solvers.physics.inertia import lumped_mass
-from solvers.physics.material import shape_matrices
-from solvers.trajectory import Trajectory
+from frictionbench.scenarios.atomic import atomic_open
+from frictionbench.scenarios.meshes import bbox_diagonal
+from frictionbench.solvers.baselines import N_AFFINE, project
+from frictionbench.solvers.licrom.network import NeuralField, PointNetEncoder, fit_affine
+from frictionbench.solvers.physics.inertia import lumped_mass
+from frictionbench.solvers.physics.material import shape_matrices
+from frictionbench.solvers.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
 

@@ -1,5 +1,5 @@
 """Inertia and gravity: lumped mass, the inertial term of the incremental potential (backward Euler's, or BDF2's with
-its target x_tilde and effective step h_eff, `solvers.integrators`) and the potential of uniform gravity, with their
+its target x_tilde and effective step h_eff, `frictionbench.solvers.integrators`) and the potential of uniform gravity, with their
 `Term` objects."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.physics.terms import BodyTerm, StepData, register
-from solvers.scene import Model
+from frictionbench.solvers.physics.terms import BodyTerm, StepData, register
+from frictionbench.solvers.scene import Model
 
 
 def lumped_mass(vol: np.ndarray, tets: np.ndarray, n_vertices: int, density: float) -> np.ndarray:

@@ -10,13 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.cli import resolve_scenario
-from scenarios.meshes import load_mesh
-from solvers.baselines import affine_basis, mass_orthonormalise
-from solvers.full.solver import FullSpaceSolver, NewtonSettings
-from solvers.licrom.cubature import uniform_cubature
-from solvers.licrom.reduced import ReducedSolver
-from solvers.model import State, build_model, initial_state
+from frictionbench.bench.cli import resolve_scenario
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.solvers.baselines import affine_basis, mass_orthonormalise
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.licrom.cubature import uniform_cubature
+from frictionbench.solvers.licrom.reduced import ReducedSolver
+from frictionbench.solvers.model import State, build_model, initial_state
 
 
 @pytest.fixture(scope="module")
