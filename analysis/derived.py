@@ -1,7 +1,7 @@
 """Figures derived across rows of the results table: how much remeshing costs a reduced model, and how far the
 reference moves when its time step is refined.
 
-Rows are the results table's rows as dicts (`frictionbench.analysis.rows.collect_rows`) or a DataFrame read from results.csv.
+Rows are the results table's rows as dicts (`analysis.rows.collect_rows`) or a DataFrame read from results.csv.
 """
 
 from __future__ import annotations

@@ -283,7 +283,7 @@ def _tail(t: np.ndarray, tail_fraction: float) -> np.ndarray:
 def creep_speed_law(traj: Trajectory, plane: Plane, contact: Contact, material: Material,
                     gravity: ArrayLike3 = GRAVITY, tail_fraction: float = 0.1) -> float:
     """The friction law's creep speed [m/s] for the body as it lies at the end: the slip speed s at which
-    sum_i A_i min(k_f s, mu f_n,i) carries the downhill weight M |g_t| (`frictionbench.solvers.physics.friction.creep_speed`).
+    sum_i A_i min(k_f s, mu f_n,i) carries the downhill weight M |g_t| (`solvers.physics.friction.creep_speed`).
 
     A_i are the surface vertices' area shares (rest mesh), f_n,i the contact law's normal pressure at their
     positions averaged over the tail frames (the frames `stick` averages the speed over; penalty: k_e times
@@ -323,7 +323,7 @@ def energy_terms(traj: Trajectory, material: Material, gravity: ArrayLike3 = GRA
 
     kinetic_k = 1/2 sum_i m_i |v_ki|^2 (v from `vertex_velocities`);
     elastic_k = sum_e V_e (Psi(F_ke) - Psi(I)), Psi the stable Neo-Hookean density with (mu, lam) from
-    (E, nu) (`frictionbench.solvers.physics.material`), F = Ds Dm^-1; zero for the undeformed body;
+    (E, nu) (`solvers.physics.material`), F = Ds Dm^-1; zero for the undeformed body;
     gravity_k = -M g . c_k - min_j (-M g . c_j), c the centre of mass: the potential measured from the lowest one
     reached in the trajectory, so every term is >= 0 near rest. m defaults to the lumped masses rho V_e / 4.
     Contact energy is not included (penetration is a metric of its own).

@@ -1,11 +1,11 @@
-"""Row building: the rows of results.csv from the stored runs of a suite (the harness, `frictionbench.bench.runner`, runs them
+"""Row building: the rows of results.csv from the stored runs of a suite (the harness, `bench.runner`, runs them
 and writes the table; what a row holds is decided here).
 
 A row is one run: a member's reference, a level of a truth ladder, or a solver variant on a member. It holds the
-run's identity and parameters, its metrics against the full-space run it is compared with (`frictionbench.analysis.metrics`),
-its timings, and with a ground truth its error against the truth and the truth's own figures (`frictionbench.analysis.truth`);
-the figures across rows (`frictionbench.analysis.derived`, `frictionbench.analysis.truth.with_frontier`) are added last. The columns are those
-of `frictionbench.analysis.schema`.
+run's identity and parameters, its metrics against the full-space run it is compared with (`analysis.metrics`),
+its timings, and with a ground truth its error against the truth and the truth's own figures (`analysis.truth`);
+the figures across rows (`analysis.derived`, `analysis.truth.with_frontier`) are added last. The columns are those
+of `analysis.schema`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
 from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
 from frictionbench.analysis.schema import computed
 from frictionbench.analysis.transfer import transfer_to_mesh
-from frictionbench.analysis.truth import TruthEstimate, assess_ladder, certified_horizon, wall_s_per_sim_s, with_frontier
+from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, wall_s_per_sim_s,
+                                          with_frontier)
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import Suite, SuiteMember, TruthSpec
 from frictionbench.solvers.integrators import get_integrator
@@ -28,7 +29,7 @@ from frictionbench.solvers.trajectory import Trajectory
 
 
 class RunTask(Protocol):
-    """One run of the harness (`frictionbench.bench.runner.Task`): its scenario, solver, mesh (None: the scenario's) and store
+    """One run of the harness (`bench.runner.Task`): its scenario, solver, mesh (None: the scenario's) and store
     key."""
 
     scenario: Scenario
@@ -40,7 +41,7 @@ class RunTask(Protocol):
 
 
 class LadderRuns(Protocol):
-    """A member's truth ladder with one integrator (`frictionbench.bench.runner.Ladder`): its finished runs level by level, the
+    """A member's truth ladder with one integrator (`bench.runner.Ladder`): its finished runs level by level, the
     differences d_k between successive levels [fraction of L], whether a run failed, and the per-frame difference
     (t (F,) [s], d (F,) [fraction of L]) of its last two levels."""
 
@@ -90,7 +91,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     err_time (the full-space run it is compared with, against the truth: the time step's share), pos_rmse_rel
     (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
     basis's share). `refs` are the members' reference runs by scenario name; `runs` gives the stored runs and the
-    variants of each member (the harness's `frictionbench.bench.runner.StoreRuns`)."""
+    variants of each member (the harness's `bench.runner.StoreRuns`)."""
     rows = []
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
@@ -132,7 +133,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             for k, task in enumerate(ladder.tasks):
                 traj, stats = runs.load(task.key)
                 rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
-                                    "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt, "integrator": integrator}
+                                    "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt,
+                                    "integrator": integrator}
                             | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)
                             | err_truth(traj))
         for v, params in runs.member_variants(m):
@@ -184,7 +186,7 @@ def run_timing(stats: dict, ref_stats: dict, dt: float) -> dict:
 def run_metrics(ref: Trajectory | None, traj: Trajectory | None, sc: Scenario, stats: dict) -> dict:
     """Metric columns of one row (a reduced run's trajectory carries its basis, for the projection error); a failed
     run (diverged, or no trajectory) gets `status = failed`, its reason and no accuracy metrics (a truncated
-    trajectory would look accurate). The schema's computed columns (`frictionbench.analysis.schema.computed`) follow `compare`'s."""
+    trajectory would look accurate). The schema's computed columns (`analysis.schema.computed`) follow `compare`'s."""
     if traj is None or ref is None or stats.get("failed"):
         return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
     contact = replace(sc.contact, stiffness=stats["contact_stiffness"])  # the stiffness the run resolved

@@ -2,12 +2,12 @@
 
 A `Column` says what a column is (kind), which way it is better and by how much it may move before `frictionbench
 compare` calls it a regression, its unit and meaning, and the function that computes it. Everything else is derived
-from `COLUMNS`: the table's column order (`frictionbench.analysis.table`), the comparison rules (`frictionbench.bench.compare.default_rules`),
+from `COLUMNS`: the table's column order (`analysis.table`), the comparison rules (`bench.compare.default_rules`),
 the stability metrics of the headline, the report and the comparison, the report's column groups, the columns
-`frictionbench.bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
+`bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
 
 A metric needs only its declaration here: a `Column` with `compute` (a function of the run's reference, the run's
-trajectory and its scenario) is evaluated on every finished run by row building (`frictionbench.analysis.rows.run_metrics`).
+trajectory and its scenario) is evaluated on every finished run by row building (`analysis.rows.run_metrics`).
 Plug-ins and tests add columns with `register`.
 
 Cells are read by `is_missing`, `number` and `flag` (and `truthy`), whether they come from rows built in memory or
@@ -35,7 +35,7 @@ DIRECTIONS: tuple[str, ...] = ("lower", "higher", "true", "one", "none")
 ACCURACY_TOL: dict[str, float] = {"rel": 0.10, "abs": 1e-4}
 #: The tolerance of timing figures, a ratio: loose, since step times on shared machines move by tens of per cent.
 TIMING_FACTOR = 1.5
-#: Distribution name -> column of its version in `frictionbench.analysis.table.provenance`.
+#: Distribution name -> column of its version in `analysis.table.provenance`.
 VERSIONED_PACKAGES: dict[str, str] = {
     "frictionbench": "frictionbench_version",
     "numpy": "numpy_version",
@@ -189,11 +189,13 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
            "frictionbench.analysis.rows.truth_columns", summary=True),
     Column("truth_horizon_s", "accuracy", unit="s", meaning="end of the first stretch the truth meets tol frame by "
            "frame", source="frictionbench.analysis.truth.certified_horizon", summary=True),
-    _accuracy("truth_err_est", "Richardson estimate of the truth's own error", "frictionbench.analysis.truth.richardson",
+    _accuracy("truth_err_est", "Richardson estimate of the truth's own error",
+              "frictionbench.analysis.truth.richardson",
               summary=True),
     Column("truth_order", "accuracy", meaning="the order the truth's error estimate used",
            source="frictionbench.analysis.truth.richardson"),
-    Column("truth_dt", "parameter", unit="s", meaning="the truth's time step", source="frictionbench.analysis.rows.truth_columns"),
+    Column("truth_dt", "parameter", unit="s", meaning="the truth's time step",
+           source="frictionbench.analysis.rows.truth_columns"),
     Column("truth_depth", "parameter", unit="count", meaning="the truth's ladder level (dt / 2^depth)",
            source="frictionbench.analysis.rows.truth_columns"),
     Column("truth_integrator", "parameter", unit="text", meaning="the truth's time integrator",
@@ -205,7 +207,8 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("mu", "parameter", meaning="the plane's friction coefficient", source=_ROWS, placed=False),
     Column("law", "parameter", unit="text", meaning="the contact law", source=_ROWS, placed=False),
     Column("tags", "parameter", unit="text", meaning="the scenario's tags", source=_ROWS, placed=False),
-    Column("run", "provenance", unit="text", meaning="the run's key in the run store", source="frictionbench.bench.store.run_key",
+    Column("run", "provenance", unit="text", meaning="the run's key in the run store",
+           source="frictionbench.bench.store.run_key",
            placed=False),
     Column("dt", "parameter", unit="s", meaning="the run's time step", source=_ROWS, placed=False, summary=True),
     _timing("warmup_s", "none", "s", "first step with kernel compilation, apart", _STATS, placed=False),

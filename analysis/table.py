@@ -1,6 +1,6 @@
 """The results table: one row per scenario x solver variant, written as `results.csv`.
 
-Column order (docs/design.md, "Metrics"), from the schema (`frictionbench.analysis.schema.COLUMNS`, read when the table is written):
+Column order (docs/design.md, "Metrics"), from the schema (`analysis.schema.COLUMNS`, read when the table is written):
 1. identity: the placed identity columns present in the rows, then solver parameters (keys starting with `param_`,
    in the order first seen);
 2. metrics: the other placed columns present in the rows, then any other key (the schema's unplaced columns among
@@ -25,7 +25,7 @@ import pandas as pd
 from frictionbench.analysis.schema import VERSIONED_PACKAGES, names
 from frictionbench.scenarios.atomic import write_text_atomic
 
-#: The identity columns (`frictionbench.analysis.schema`): a row's key across result sets.
+#: The identity columns (`analysis.schema`): a row's key across result sets.
 IDENTITY_COLUMNS: tuple[str, ...] = names("identity")
 PARAM_PREFIX = "param_"
 #: Timing [s, ms or ratios of them], measured on this machine: never compared for behaviour.

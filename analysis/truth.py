@@ -101,7 +101,7 @@ def assess_ladder(differences: Sequence[float], tol: float, integrator: Integrat
 
 def certified_horizon(t: Sequence[float], frame_differences: Sequence[float], tol: float) -> float | None:
     """The end [s] of the longest first stretch of frames on which the ladder's two finest runs differ by at most
-    `tol` frame by frame (per-frame RMS over the vertices / L, `frictionbench.analysis.metrics.error_over_time`): up to there the
+    `tol` frame by frame (per-frame RMS over the vertices / L, `analysis.metrics.error_over_time`): up to there the
     truth meets the ladder's tolerance even where the whole run does not (a trajectory that converges early and
     drifts late). t (F,) [s] increasing; None without frames or when the first frame already differs."""
     ok = [float(e) <= tol for e in frame_differences]
@@ -123,7 +123,7 @@ def decidable(limit: float, certified: bool, err_est: float | None, factor: floa
 
 def wall_s_per_sim_s(step_wall_s: Sequence[float], dt: float) -> float | None:
     """Stepping wall time per simulated second [s/s]: sum of the steps' wall times [s] / (steps x dt [s]); the
-    warm-up step is not among them (`frictionbench.solvers.run`). None without steps."""
+    warm-up step is not among them (`solvers.run`). None without steps."""
     if not step_wall_s or dt <= 0.0:
         return None
     return float(sum(step_wall_s)) / (len(step_wall_s) * dt)

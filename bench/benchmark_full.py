@@ -1,6 +1,7 @@
 """Benchmark of the full-space solver: per-step time and Newton iterations on catalogue meshes.
 
-    python -m frictionbench.bench.benchmark_full --meshes cheese/coarse cheese/medium --device cpu --out out/bench_full.json
+    python -m frictionbench.bench.benchmark_full --meshes cheese/coarse cheese/medium --device cpu \
+        --out out/bench_full.json
 
 Runs the quick suite's first scenario (a drop onto the paper's plane with friction) on each mesh for --steps steps
 after an untimed warm-up step, and writes the figures with the machine's provenance as JSON.

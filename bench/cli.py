@@ -65,7 +65,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate one scenario; write trajectory.npz, stats.json and a VTU/PVD series into --out. The resource guard
-    (`frictionbench.scenarios.resources`) refuses an oversized run before anything heavy is imported."""
+    (`scenarios.resources`) refuses an oversized run before anything heavy is imported."""
     from frictionbench.scenarios.resources import check_runs
 
     scenario = resolve_scenario(args.scenario)
@@ -101,7 +101,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def parse_variants(spec: str | None, epochs: int | None = None, suite: str | None = None) -> list:
-    """`--solvers` list -> Variants: names from `frictionbench.bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
+    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
     suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
     parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
     training epochs of the variants that train."""

@@ -3,7 +3,7 @@ metric, the values, their change, the tolerance and the gates' thresholds, and a
 
 As pytest-benchmark's `compare --fail` and asv's `continuous` do, a **regression** is a metric that moved in its
 bad direction by more than its tolerance. Each metric has a `Rule`: its kind, which direction is better, and
-its tolerance, by default those the results schema declares (`default_rules`, from `frictionbench.analysis.schema`):
+its tolerance, by default those the results schema declares (`default_rules`, from `analysis.schema`):
 
 - accuracy and stability figures (lower is better, a flag that should hold, a ratio that should stay at 1):
   regression when the change in the bad direction exceeds max(rel x |baseline|, abs);
@@ -12,7 +12,7 @@ its tolerance, by default those the results schema declares (`default_rules`, fr
   step times on shared machines move by tens of per cent from run to run.
 
 Also regressions: a binding gate of `gates.toml` that the baseline row met and the new row fails (whatever the
-tolerance; an undecidable verdict, `frictionbench.bench.gates`, is no failure and says so in the reason), a run that succeeded
+tolerance; an undecidable verdict, `bench.gates`, is no failure and says so in the reason), a run that succeeded
 in the baseline and failed in the new set, a row or a value the baseline has and the new set lacks. The same tests in the good direction give **improved**; rows only in the new set are
 **new**. Tolerances are configurable per metric or per kind (`with_tolerances`, `frictionbench compare --tol`).
 
@@ -68,7 +68,7 @@ class Rule:
 
 
 def default_rules() -> tuple[Rule, ...]:
-    """The rule of every judged column of the schema (`frictionbench.analysis.schema.Column.judged`), in table order."""
+    """The rule of every judged column of the schema (`analysis.schema.Column.judged`), in table order."""
     return tuple(Rule(c.name, c.kind, c.better, c.rel, c.abs, c.factor) for c in COLUMNS.values() if c.judged)
 
 

@@ -2,7 +2,7 @@
 
 Both give `share(obj) -> handle` (a large argument sent once per worker, passed to `submit` in place of the
 object), `submit(fn, *args) -> future` and `as_completed(futures)`; the runner uses nothing else. Tasks read and
-write no files of the client's (`frictionbench.bench.payload`): a Dask worker may share no filesystem with it.
+write no files of the client's (`bench.payload`): a Dask worker may share no filesystem with it.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ name another file. Format:
 Each gate yields one verdict per matching row; a gate that matches no row fails (a missing run is a failure).
 A verdict is `passed`, `failed` or `undecidable`: a `max` gate on an error against the truth (`err_truth`, or a
 gate marked `against_truth`) whose limit is below 3x the error estimate of the row's truth, where that truth is
-uncertified (`frictionbench.analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
+uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
 `frictionbench gate`; so is a gate on `speedup_equal_accuracy` of a row more accurate than its whole ladder, and a
 `min` gate on it whose row is less accurate than the ladder's coarsest run (its number is an upper bound: below the
 limit it fails, at or above it nothing is proven).
@@ -76,7 +76,7 @@ def load_gates(path: str | Path | None = None) -> list[dict]:
 
 
 def _passes(value: object, gate: dict) -> bool:
-    """Whether a cell meets a gate: `equals` a flag (`frictionbench.analysis.schema.flag`), or within `min` and `max`; a missing
+    """Whether a cell meets a gate: `equals` a flag (`analysis.schema.flag`), or within `min` and `max`; a missing
     value never does."""
     if is_missing(value):
         return False
@@ -90,7 +90,7 @@ def _passes(value: object, gate: dict) -> bool:
 
 def _undecidable(row: pd.Series, gate: dict) -> bool:
     """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
-    estimate is too large for the limit (`frictionbench.analysis.truth.decidable`), or a gate on the speedup at equal accuracy
+    estimate is too large for the limit (`analysis.truth.decidable`), or a gate on the speedup at equal accuracy
     of a row more accurate than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on
     it met only by an upper bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
     if gate["metric"] == "speedup_equal_accuracy":

@@ -36,7 +36,7 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
                  baseline: str | Path | None = None, tolerances: Sequence[str] = ()) -> Path:
     """Rebuild `out/report.html` from `out/results.csv` and the run store, judged by `gates_file` (None: the
     shipped gates); renders the first scenarios. With a `baseline` result set (an output folder), the report gets a
-    section comparing the results with it (`frictionbench.bench.compare`, its default tolerances changed by `tolerances`)."""
+    section comparing the results with it (`bench.compare`, its default tolerances changed by `tolerances`)."""
     out = Path(out)
     results = pd.read_csv(out / "results.csv")
     suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path

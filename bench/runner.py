@@ -2,11 +2,11 @@
 
 Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
 shape on the suite's training split (cached), (3) every variant on every member (and on the other mesh of the
-shape, for remeshing), (4) metrics against the references, the rows built by `frictionbench.analysis.rows.collect_rows` ->
+shape, for remeshing), (4) metrics against the references, the rows built by `analysis.rows.collect_rows` ->
 results.csv and report.html. Each run is a folder of the `RunStore` keyed by a hash of its scenario and settings:
 an interrupted run resumes with what is missing.
 Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster):
-a task carries what its worker needs and returns what it produced (`frictionbench.bench.payload`); only the client writes here.
+a task carries what its worker needs and returns what it produced (`bench.payload`); only the client writes here.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: 
     cache); returns the trajectory (with a reduced run's basis) and stats for the client to store. A failed run is
     a result with its reason, never an exception. Its BLAS, OpenMP and torch thread pools are limited to `threads`
     so that parallel workers do not oversubscribe the cores; the parent's registered `solvers`
-    (`frictionbench.solvers.registry.entries`) are registered here too."""
+    (`solvers.registry.entries`) are registered here too."""
     from threadpoolctl import threadpool_limits
 
     from frictionbench.solvers.run import run_scenario
@@ -215,7 +215,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
 def available_variants(variants: Sequence[Variant]) -> tuple[list[Variant], list[dict]]:
     """(the variants whose solver is available here, the others as {solver, variant, reason}), each skipped one
-    noted on stderr with the reason (`frictionbench.solvers.registry.unavailable`: a package it requires is missing, or its module
+    noted on stderr with the reason (`solvers.registry.unavailable`: a package it requires is missing, or its module
     does not import)."""
     reasons = {name: unavailable(name) for name in dict.fromkeys(v.solver for v in variants)}
     skipped = [{"solver": v.solver, "variant": v.label or v.solver, "reason": reasons[v.solver]}
@@ -244,7 +244,7 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
                     truth: TruthSpec | None = None) -> None:
     """Refuse the whole matrix before any work when one of its runs (a reference, a remeshed reference, a variant
     with its own time step, the deepest run a truth ladder may need) exceeds the bounds of
-    `frictionbench.scenarios.resources.check_resources`."""
+    `scenarios.resources.check_resources`."""
     from frictionbench.scenarios.errors import ScenarioError
     from frictionbench.scenarios.resources import check_runs
 
@@ -368,8 +368,8 @@ def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) 
 
 @dataclass(frozen=True)
 class StoreRuns:
-    """The runs of a matrix as row building reads them (`frictionbench.analysis.rows.Runs`): the store, and the variants
-    resolved for the suite (`frictionbench.bench.training.prepare_variants`)."""
+    """The runs of a matrix as row building reads them (`analysis.rows.Runs`): the store, and the variants
+    resolved for the suite (`bench.training.prepare_variants`)."""
 
     store: RunStore
     resolved: Sequence

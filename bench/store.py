@@ -2,7 +2,7 @@
 
 A run folder holds `trajectory.npz` (with a reduced run's basis) and `stats.json`; it counts as done only once
 `stats.json` exists (written last), so an interrupted run is simply redone and a rerun recomputes only what is
-missing. Only the client writes the store: workers return what they computed (`frictionbench.bench.payload`).
+missing. Only the client writes the store: workers return what they computed (`bench.payload`).
 """
 
 from __future__ import annotations
@@ -69,5 +69,5 @@ class RunStore:
 
 
 def load_run_info(out: str | Path) -> dict:
-    """The run.json of a results folder (suite, device, variants, ...; written by `frictionbench.bench.runner.run_suite`)."""
+    """The run.json of a results folder (suite, device, variants, ...; written by `bench.runner.run_suite`)."""
     return json.loads((Path(out) / "run.json").read_text())

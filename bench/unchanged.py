@@ -1,8 +1,8 @@
 """Is behaviour unchanged? Compare two results folders of one suite, or run the suite on a base commit and on the
 working tree first and compare those.
 
-    python -m frictionbench.bench.unchanged --base 1ecc70a --suite quick --out out/unchanged   # runs both, then compares
-    python -m frictionbench.bench.unchanged OLD_DIR NEW_DIR                                    # two existing results folders
+    python -m frictionbench.bench.unchanged --base 1ecc70a --suite quick --out out/unchanged  # runs both, compares
+    python -m frictionbench.bench.unchanged OLD_DIR NEW_DIR                                   # two results folders
 
 Rows are matched by their identity columns (suite, scenario, split, mesh, train_mesh, solver, variant). Every
 other column is compared except timing and provenance (`IGNORED_COLUMNS`, `*_version`): numbers to a relative
@@ -35,7 +35,7 @@ from frictionbench.bench.gates import check, load_gates
 from frictionbench.bench.store import load_run_info
 from frictionbench.scenarios.suites import load_suite
 
-#: Columns never compared: measured times (and what is derived from them) and provenance (`frictionbench.analysis.schema` kinds
+#: Columns never compared: measured times (and what is derived from them) and provenance (`analysis.schema` kinds
 #: timing and provenance).
 IGNORED_COLUMNS: frozenset[str] = frozenset(names("timing", "provenance"))
 EXACT_RTOL = 1e-9

@@ -24,7 +24,7 @@ def grid(solver: str, label: str, base: dict | None = None, **axes: list) -> lis
     """The variants of `solver` over the cartesian product of `axes` (parameter name -> values) on top of the
     parameters `base`, labelled `label.format(**point)` (e.g. grid("licrom", "r{r}", LICROM, r=[8, 16])). Every
     axis and base parameter must be one the solver declares (`Solver.parameters`): an unknown one is an error
-    naming it and the declared ones; for a solver unavailable here (`frictionbench.solvers.registry.unavailable`) they are not
+    naming it and the declared ones; for a solver unavailable here (`solvers.registry.unavailable`) they are not
     checked, and the runner skips its variants with the reason."""
     declared = get_solver(solver).parameters if unavailable(solver) is None else None
     unknown = sorted((set(axes) | set(base or {})) - set(declared)) if declared is not None else []
@@ -40,7 +40,7 @@ def grid(solver: str, label: str, base: dict | None = None, **axes: list) -> lis
 #: (results rows get it as `ref_dt_change`, analysis/derived.py `with_ref_dt_change`).
 DT_HALF = Variant("full", {}, label="dt-half", dt_scale=0.5)
 
-#: The full-space solver with BDF2 (second order, `frictionbench.solvers.integrators`) instead of the reference's backward Euler, at
+#: The full-space solver with BDF2 (second order, `solvers.integrators`) instead of the reference's backward Euler, at
 #: the same time step: how much of the reference's time error the integrator alone removes.
 BDF2 = Variant("full", {}, label="bdf2", overrides={"time.integrator": "bdf2"})
 

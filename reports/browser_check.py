@@ -1,8 +1,8 @@
 """Open a report in headless Chromium (Debian's, driven by playwright) and check it as a reader would see it:
 it loads with no console errors and no network requests, and its interactive plots are drawn.
 
-    python -m frictionbench.reports.browser_check out/quick/report.html      # exit 1 with the problems listed
-    python -m frictionbench.reports.browser_check --install                  # make sure a Chromium is there (Debian's package)
+    python -m frictionbench.reports.browser_check out/quick/report.html  # exit 1 with the problems listed
+    python -m frictionbench.reports.browser_check --install              # a Chromium is there (Debian's package)
 
 The browser is `$FRICTIONBENCH_CHROMIUM` when set, else `chromium` (or `chromium-browser`) on the PATH. Nothing
 is downloaded by playwright: `--install` installs Debian's `chromium` package with apt-get when none is found
@@ -28,7 +28,8 @@ ENV_VAR = "FRICTIONBENCH_CHROMIUM"
 PLOT_TIMEOUT_MS = 60_000
 APT_PACKAGE = "chromium"
 HOW_TO_GET_ONE = (f"install Debian's package as root (`apt-get install {APT_PACKAGE}`, or "
-                  f"`python -m frictionbench.reports.browser_check --install`), or set {ENV_VAR} to a Chromium executable")
+                  f"`python -m frictionbench.reports.browser_check --install`), or set {ENV_VAR} to a Chromium "
+                  "executable")
 
 
 class BrowserMissing(RuntimeError):
@@ -112,7 +113,8 @@ def check_report(path: str | Path, chromium: str | None = None) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     """Check a report (exit 1 with its problems), or with --install make sure a Chromium is there (exit 1 when
     none can be had)."""
-    p = argparse.ArgumentParser(prog="python -m frictionbench.reports.browser_check", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m frictionbench.reports.browser_check",
+                                description=__doc__.split("\n\n")[0])
     p.add_argument("report", nargs="?", help="report.html to check")
     p.add_argument("--install", action="store_true", help="install Debian's chromium when none is found")
     args = p.parse_args(argv)

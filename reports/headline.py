@@ -2,7 +2,7 @@
 stability and whether the truth is certified, and the gates as a count with the failures listed.
 
 Accuracy is against the ground truth (`err_truth`) when the results have one, else against the same-dt reference
-(`pos_rmse_rel`), with the step-time speed-up in place of the speed-up at equal accuracy (`frictionbench.reports.plots.
+(`pos_rmse_rel`), with the step-time speed-up in place of the speed-up at equal accuracy (`reports.plots.
 accuracy_columns`). Ground-truth ladder rows (a non-empty `ladder` column) are not variants of a family.
 """
 
@@ -85,7 +85,7 @@ def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.Data
     verdicts = verdict_frame(gates)
     unstable: set[tuple[str, str]] = set()
     if not verdicts.empty and {"metric", "scenario", "variant"} <= set(verdicts):
-        # a gate or advisory check on a stability metric (`frictionbench.analysis.schema.stability_metrics`) failed
+        # a gate or advisory check on a stability metric (`analysis.schema.stability_metrics`) failed
         bad = verdicts[verdicts["metric"].isin(stability_metrics()) & (verdicts["status"] == "failed")]
         unstable = set(zip(bad["scenario"].astype(str), bad["variant"].astype(str)))
     rows = []

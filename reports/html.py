@@ -56,10 +56,10 @@ class ScenarioRuns:
 
     scenario: its name (a heading); reference: the full-space run; others: label -> run compared with it, each
     on the reference's mesh; errors: label -> (t (F,) [s], e (F,) [-]), the per-frame error of that run against
-    the truth when there is one, else against the reference (`frictionbench.analysis.metrics.error_over_time`); plane: drawn
+    the truth when there is one, else against the reference (`analysis.metrics.error_over_time`); plane: drawn
     in the viewer; reference_label: the reference's label; truth: the scenario's ground-truth run (None: none),
     truth_label its label. The viewer shows the truth, the reference and, of the others, each solver family's
-    best variant among them (`frictionbench.reports.headline.ranked_variants`; the first three where none is ranked).
+    best variant among them (`reports.headline.ranked_variants`; the first three where none is ranked).
     """
 
     scenario: str
@@ -84,7 +84,7 @@ def _cell(value: object) -> str:
 
 
 def _verdict_class(value: object) -> str:
-    """CSS class of a verdict cell: pass for a true flag (True, 'ok', 'pass', `frictionbench.analysis.schema.flag`), fail for
+    """CSS class of a verdict cell: pass for a true flag (True, 'ok', 'pass', `analysis.schema.flag`), fail for
     anything else, '' if missing."""
     if is_missing(value):
         return ""
@@ -118,7 +118,7 @@ def _columns(frame: pd.DataFrame, wanted: Sequence[str]) -> pd.DataFrame:
 
 def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
     """The headline: what accuracy is measured against, the gates as a count with the failures listed, the
-    failed runs, and per solver family its best variant (`frictionbench.reports.headline.headline_table`)."""
+    failed runs, and per solver family its best variant (`reports.headline.headline_table`)."""
     parts = [f'<p class="headline">{html.escape(truth_summary(frame))}</p>', '<ul class="headline">']
     verdicts = verdict_frame(gates)
     if verdicts.empty:
@@ -174,7 +174,7 @@ def _verdicts(gates: Sequence[object]) -> str:
 
 
 def _results(frame: pd.DataFrame) -> str:
-    """The key columns of every results row: the schema's summary columns (`frictionbench.analysis.schema.Column.summary`), its
+    """The key columns of every results row: the schema's summary columns (`analysis.schema.Column.summary`), its
     flags that should hold coloured."""
     summary = _columns(frame, [c.name for c in COLUMNS.values() if c.summary])
     return _table(summary, verdicts=[c.name for c in COLUMNS.values() if c.summary and c.better == "true"])
@@ -383,7 +383,7 @@ def _provenance(frame: pd.DataFrame) -> str:
 
 
 def comparison_section(comparison: pd.DataFrame, baseline: str, max_rows: int = 500) -> str:
-    """The comparison of these results with a baseline result set (`frictionbench.bench.compare.compare_results`'s table): a
+    """The comparison of these results with a baseline result set (`bench.compare.compare_results`'s table): a
     banner with the count of each verdict, then the rows that are not `ok` (regressions first; only the
     regressions where there are more than `max_rows`). Every text is escaped."""
     counts = comparison["verdict"].value_counts()

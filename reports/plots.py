@@ -1,6 +1,6 @@
 """Report figures as plotly figure dicts (data, layout, frames), drawn in the page by the embedded plotly.js.
 
-Suite-provided texts (scenario and variant names) are HTML-escaped here (`frictionbench.reports.interactive.text`), since plotly
+Suite-provided texts (scenario and variant names) are HTML-escaped here (`reports.interactive.text`), since plotly
 renders a subset of HTML in names and hover texts.
 """
 
@@ -192,7 +192,7 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
                                             "dt [s]", "err_truth")}
 
 
-#: The parts of a variant's error against the truth (`frictionbench.analysis.schema`), in the order drawn.
+#: The parts of a variant's error against the truth (`analysis.schema`), in the order drawn.
 ERROR_PARTS: tuple[tuple[str, str], ...] = (
     ("err_projection", "projection: the truth projected onto the subspace"),
     ("pos_rmse_rel", "reduction: against the full-space run at its dt"),

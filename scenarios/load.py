@@ -4,7 +4,7 @@ Every problem raises `ScenarioError(field, value, reason)` before any simulation
 of the offending entry (`material.poisson_ratio`, `plane.normal`, ...) or, for an unreadable or malformed file,
 the file's path; the message always contains the offending value.
 
-Format (one scenario per file; tables mirror the dataclasses of `frictionbench.scenarios.model`; every key except `name` is
+Format (one scenario per file; tables mirror the dataclasses of `scenarios.model`; every key except `name` is
 optional and defaults to the dataclass default unless said otherwise below):
 
     name = "cheese_slope"            # required; letters, digits, `_ . + -`, parts joined by `/`
@@ -13,7 +13,7 @@ optional and defaults to the dataclass default unless said otherwise below):
     gravity = [0.0, -9.81, 0.0]      # [m/s^2]
 
     [mesh]        # either a catalogue entry (`name`, `resolution`) or a file (`path`), never both
-    name = "cheese"                  # a name of `frictionbench.scenarios.meshes.catalogue()`; default "cheese"
+    name = "cheese"                  # a name of `scenarios.meshes.catalogue()`; default "cheese"
     resolution = "coarse"            # one of that name's resolutions; not allowed with `path`
     # path = "wedge.vtu"             # must exist; relative to the scenario file's folder (to `base_dir`
     #                                # for `scenario_from_dict`); stored resolved to an absolute path
@@ -44,8 +44,8 @@ optional and defaults to the dataclass default unless said otherwise below):
                   there is nothing to measure a clearance from: it defaults to false and a number is an error.
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
     [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
-                  integrator = a name of `frictionbench.scenarios.model.integrator_names()` (the integrators of
-                  `frictionbench.solvers.integrators`); default TimeSpec.integrator, backward Euler
+                  integrator = a name of `scenarios.model.integrator_names()` (the integrators of
+                  `solvers.integrators`); default TimeSpec.integrator, backward Euler
     [effects]     gravity, elasticity, contact, friction, damping, viscosity (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
@@ -79,8 +79,8 @@ from pathlib import Path
 from typing import Any
 
 from frictionbench.scenarios.errors import ScenarioError, checked_table
-from frictionbench.scenarios.model import (Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec, Vec3,
-                             integrator_names)
+from frictionbench.scenarios.model import (Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
+                                           Vec3, integrator_names)
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
             "effects")

@@ -1,6 +1,6 @@
 """Tetrahedral meshes: the `TetMesh` type, validation, the mesh catalogue, file loading and the mesh cache.
 
-Catalogue meshes (`catalogue()` lists names and resolutions; `frictionbench.scenarios.meshgen` builds them):
+Catalogue meshes (`catalogue()` lists names and resolutions; `scenarios.meshgen` builds them):
 - `cheese`: a 60 degree wedge of a 0.5 m radius, 0.22 m high cylinder with five spherical holes, every one
   cutting the surface: a tunnel through top and bottom (so the surface has genus 1) and dents in the top, a
   flat side, the curved side and the bottom. Apex edge on the y axis, bottom at y = 0. TetWild.

@@ -2,7 +2,7 @@
 
 Surface generators (`icosphere`, `cheese_surface`) return (V (v, 3) [m], F (f, 3) outward triangles);
 volume generators (`structured_box`, `tetrahedralize`) return raw (X (n, 3) float64 [m], tets (m, 4)).
-Validity is enforced afterwards by `frictionbench.scenarios.meshes.validate_mesh`. The world's up axis is +y.
+Validity is enforced afterwards by `scenarios.meshes.validate_mesh`. The world's up axis is +y.
 manifold3d, pytetwild and pyvista are imported lazily: loading a shipped or cached mesh needs none of them.
 """
 

@@ -1,6 +1,6 @@
 """The scenario data model: what is simulated, as plain frozen dataclasses.
 
-A scenario is data, not code. The loader (`frictionbench.scenarios.load`) builds these from TOML and validates every
+A scenario is data, not code. The loader (`scenarios.load`) builds these from TOML and validates every
 field; everything downstream (solvers, bench, reports) reads only these objects. Units are SI throughout:
 metres, seconds, kilograms, pascals. The world's up axis is +y and gravity defaults to (0, -9.81, 0).
 """
@@ -12,23 +12,24 @@ from dataclasses import dataclass, field, replace
 Vec3 = tuple[float, float, float]
 
 #: The names a scenario's `time.integrator` may take, in registration order. The integrators are classes of
-#: `frictionbench.solvers.integrators`, registered by name there (`frictionbench.solvers.integrators.register`), which hands each name down here
+#: `solvers.integrators`, registered by name there (`solvers.integrators.register`), which hands each name down here
 #: (`register_integrator_name`): this bottom layer may not import solvers (pyproject.toml's layer contracts), so the
 #: loader validates against the names the classes give it rather than a second list that could disagree with them.
 _INTEGRATOR_NAMES: list[str] = []
 
 
 def register_integrator_name(name: str) -> None:
-    """Accept `name` as a `time.integrator` (called by `frictionbench.solvers.integrators.register` for each integrator class)."""
+    """Accept `name` as a `time.integrator` (called by `solvers.integrators.register` for each integrator class)."""
     if name not in _INTEGRATOR_NAMES:
         _INTEGRATOR_NAMES.append(name)
 
 
 def integrator_names() -> tuple[str, ...]:
-    """The registered integrator names; a RuntimeError when none is (`frictionbench.solvers.integrators` not imported yet: every
+    """The registered integrator names; a RuntimeError when none is (`solvers.integrators` not imported yet: every
     program that loads scenarios imports it first)."""
     if not _INTEGRATOR_NAMES:
-        raise RuntimeError("no time integrator is registered: import frictionbench.solvers.integrators before loading scenarios")
+        raise RuntimeError("no time integrator is registered: import frictionbench.solvers.integrators before "
+                           "loading scenarios")
     return tuple(_INTEGRATOR_NAMES)
 
 
@@ -59,7 +60,7 @@ class Material:
     """Stable Neo-Hookean material: density [kg/m^3], Young's modulus [Pa], Poisson ratio [-] in (-1, 0.5), and
     its Kelvin-Voigt damping (docs/design.md, "Material damping"), given at most one way: `viscosity` eta [Pa s],
     or `damping_ratio` zeta [-], the damping ratio of the body's first non-rigid vibration mode on its mesh,
-    resolved to a viscosity when the model is built (`frictionbench.solvers.physics.viscosity.viscosity_for_damping_ratio`).
+    resolved to a viscosity when the model is built (`solvers.physics.viscosity.viscosity_for_damping_ratio`).
     Both None: undamped (no viscosity term)."""
 
     density: float = 1000.0
@@ -85,7 +86,7 @@ class Contact:
     law: `penalty` (the paper's soft contact) or `barrier` (IPC log barrier).
     stiffness: k_e [Pa/m], normal force per area per metre of penetration (penalty law); None (TOML "auto", the
         default) sets it from the material and the initial motion when the model is built:
-        k_e = max(E, rho v^2) / (1e-3 L) (`frictionbench.solvers.physics.contact.auto_penalty_stiffness`), so the penetration is
+        k_e = max(E, rho v^2) / (1e-3 L) (`solvers.physics.contact.auto_penalty_stiffness`), so the penetration is
         about 1e-3 L times the strain the contact pressure causes.
     damping: k_d [Pa s/m], normal force per area per m/s of approach speed while penetrating.
     friction_stiffness: k_f [Pa s/m], tangential force per area per m/s of slip below the Coulomb limit.
@@ -152,7 +153,7 @@ class Effects:
     viscosity: bool = True
 
 
-#: Default gravity [m/s^2] (y is up): a scenario's, and the metrics' (`frictionbench.analysis.metrics`) where none is given.
+#: Default gravity [m/s^2] (y is up): a scenario's, and the metrics' (`analysis.metrics`) where none is given.
 GRAVITY: Vec3 = (0.0, -9.81, 0.0)
 
 

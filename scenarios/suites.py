@@ -5,9 +5,9 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     [suite]
     name = "quick"                  # members are named `<suite>/<labels joined by _>`
     description = "..."
-    allow_large = false             # optional: lift the resource guard's bounds (`frictionbench.scenarios.resources`)
+    allow_large = false             # optional: lift the resource guard's bounds (`scenarios.resources`)
 
-    [base]                          # a scenario dict (`frictionbench.scenarios.load` schema) without `name`, shared by all
+    [base]                          # a scenario dict (`scenarios.load` schema) without `name`, shared by all
     [base.material]
     youngs_modulus = 2.0e5
 
@@ -46,7 +46,7 @@ crossed axes and its own overrides; a later value for the same field wins. A mem
 an extra's own label keys) to labels; its name joins the labels in axis order, an extra's own labels last. A
 suite without axes has only its extras. Members without a `description` get the suite's.
 
-Every member is validated by `frictionbench.scenarios.load.scenario_from_dict`; errors name the suite file and the member.
+Every member is validated by `scenarios.load.scenario_from_dict`; errors name the suite file and the member.
 """
 
 from __future__ import annotations

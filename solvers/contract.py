@@ -2,14 +2,14 @@
 Newton's `solver.step(state_in, state_out, dt)`).
 
 A solver is a `Solver` subclass that declares its `name`, its `parameters` (name -> default; a variant sets
-some of them) and the time `integrators` it implements (names in `frictionbench.solvers.integrators`; backward Euler unless it
+some of them) and the time `integrators` it implements (names in `solvers.integrators`; backward Euler unless it
 says more: a scene asking for another is skipped with the reason), the packages it `requires` (import names beyond
 the benchmark's own dependencies: without one it is listed as unavailable, and its variants are skipped, with the
-reason; `frictionbench.solvers.registry`), and implements `setup(model)` (untimed: build what the run needs on this model) and
+reason; `solvers.registry`), and implements `setup(model)` (untimed: build what the run needs on this model) and
 `step(state_in, state_out, dt) -> StepStats`. Optional: `skip(model)` says why a scene cannot be run, `prepare`
 does offline work once per mesh shape (training, bases, cubature) writing its artefacts into the run's output
 folder, `initial(state)` adds a solver's own coordinates to the initial state, and `describe()` gives provenance
-for the run's stats. Registering the class (`frictionbench.solvers.registry.register`, or the entry-point group
+for the run's stats. Registering the class (`solvers.registry.register`, or the entry-point group
 `frictionbench.solvers` of an installed package) is all the harness needs: the CLI, the runner and the reports never
 name a solver.
 """

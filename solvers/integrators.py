@@ -21,7 +21,7 @@ solver, whose decoding is linear). A solver asks its model's integrator for the 
 (`Integrator.previous`, from `State.previous`) and for the step's constants (`Integrator.lagged`).
 
 Which previous state a step uses is the integrator's `restart_on_step_change`: True (what every run does) uses the
-previous state only where it lies one step h back, so a step that `frictionbench.solvers.simulate.advance` retries as two half
+previous state only where it lies one step h back, so a step that `solvers.simulate.advance` retries as two half
 steps after a full one restarts BDF2: the first half step is backward Euler, the second is BDF2 at h/2 on the first,
 and the next full step is backward Euler again (a half step that follows a half step keeps BDF2: its history is one
 half step back). False uses the previous state at any distance, with the variable-step coefficients: what an
@@ -29,7 +29,7 @@ adaptive step size needs.
 
 The registry lives here, with the classes; the scenario loader, in the bottom layer that may not import solvers
 (pyproject.toml's layer contracts), validates `time.integrator` against the names `register` hands down to it
-(`frictionbench.scenarios.model.register_integrator_name`): one list of names, filled by the classes themselves.
+(`scenarios.model.register_integrator_name`): one list of names, filled by the classes themselves.
 """
 
 from __future__ import annotations

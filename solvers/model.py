@@ -1,6 +1,6 @@
 """The static simulation `Model` built from a scenario and a mesh (`build_model`), and the initial `State`.
 
-The `Model` and `State` classes are in `frictionbench.solvers.scene` (below the physics, which reads the Model); they are
+The `Model` and `State` classes are in `solvers.scene` (below the physics, which reads the Model); they are
 imported here for the many callers that build a model and its initial state.
 """
 

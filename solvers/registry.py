@@ -1,4 +1,4 @@
-"""The solver registry: solver name -> its `frictionbench.solvers.contract.Solver` class, the one place solvers are listed.
+"""The solver registry: solver name -> its `solvers.contract.Solver` class, the one place solvers are listed.
 
 Entries are import paths (`module:Class`), imported on first use, so that torch and taichi load only when a
 reduced solver runs, and so that a worker process can import a solver registered elsewhere (`entries`,

@@ -1,10 +1,10 @@
 """The static simulation `Model` of a scene and the changing `State` the solvers share (built by
-`frictionbench.solvers.model.build_model`).
+`solvers.model.build_model`).
 
 Newton-style split: a `Model` holds what does not change during a run (rest mesh, masses, material with its
 damping, plane, contact points and their area weights, which effects exist); a `State` holds positions and
 velocities; a solver advances `step(state_in, state_out, dt)`. Full-space and reduced solvers share both. This
-module imports no physics, so that the physics terms (`frictionbench.solvers.physics`) can read the Model without an import
+module imports no physics, so that the physics terms (`solvers.physics`) can read the Model without an import
 circle.
 """
 
@@ -27,7 +27,7 @@ class State:
     """Positions x (n, 3) [m] and velocities v (n, 3) [m/s] at time t [s]; a solver with latent coordinates (a
     reduced one) also sets q (r,) and their rate qdot (r,) [1/s] of the same state (None: not in its subspace yet,
     e.g. an initial state, which it then projects). `previous` is the state the step that made this one started
-    from (its own `previous` dropped), what a multistep integrator needs (`frictionbench.solvers.integrators`); None for an
+    from (its own `previous` dropped), what a multistep integrator needs (`solvers.integrators`); None for an
     initial state."""
 
     x: np.ndarray
@@ -61,7 +61,7 @@ class Model:
     `damping`, `viscosity`); L: bounding-box diagonal of the rest mesh [m]; viscosity: the Kelvin-Voigt eta [Pa s]
     (0 without material damping; a scenario's damping ratio resolved on this mesh) and damping_ratio the ratio the
     scenario asked for (None where it gave a viscosity or nothing); integrator: the time integrator
-    (`frictionbench.solvers.integrators`) the scenario's `time.integrator` names. `scenario` is the scene it was built from (its
+    (`solvers.integrators`) the scenario's `time.integrator` names. `scenario` is the scene it was built from (its
     name, time span and initial placement; the physics above is read from the model's own fields).
     """
 

@@ -1,13 +1,13 @@
 """The time loop shared by every solver: step a `State` through a scenario's duration, store frames.
 
 A solver is anything with `step(state_in, state_out, dt) -> stats` whose stats are a `StepStats`
-(`frictionbench.solvers.step_stats`); where its states carry latent coordinates q (every stored frame's, the initial state's
+(`solvers.step_stats`); where its states carry latent coordinates q (every stored frame's, the initial state's
 included), the trajectory stores them. A step that fails (Newton not converged, or a non-finite state) is redone
 from the same start as two half steps, recursively down to dt / 2^MAX_RETRY_DEPTH; the step's record then sums the
 attempts' iterations, counters and wall time and counts the retries. A step still non-finite after that ends the
 run: the loop raises `Diverged` carrying what was computed so far. Each state a solver returns remembers the one its
 step started from (`State.previous`), so BDF2's history follows the steps actually taken: a retried step restarts it
-with a backward-Euler half step (`frictionbench.solvers.integrators`).
+with a backward-Euler half step (`solvers.integrators`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
-"""One step's incremental potential as a `frictionbench.solvers.newton.NewtonProblem`, shared by the implicit solvers: a backend
+"""One step's incremental potential as a `solvers.newton.NewtonProblem`, shared by the implicit solvers: a backend
 gives the energy, the Newton direction, the step norm and the contact points of its unknowns, and `StepProblem`
-caps every step by the one feasible-step rule of the physics terms (`frictionbench.solvers.physics.terms.max_feasible_step`:
+caps every step by the one feasible-step rule of the physics terms (`solvers.physics.terms.max_feasible_step`:
 the barrier law keeps every contact point above the plane; without a capping term a step is never capped)."""
 
 from __future__ import annotations

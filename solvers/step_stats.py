@@ -15,8 +15,8 @@ class StepStats:
     direct update); converged: whether the solve met its criterion (True for a solver without one); residual: its
     final convergence measure (a Newton solver's |dx|_inf / h [m/s]; 0 for a solver without one); counters: the
     solver's own counts (name -> count, summed over a retried step's attempts and over the run; the Newton solvers'
-    are `line_search_halvings`, `stalls` and `linear_iters`: `frictionbench.solvers.newton.NewtonResult.step_stats`); retries:
-    times the step was redone as two half steps after a failure (set by `frictionbench.solvers.simulate`, never by the solver).
+    are `line_search_halvings`, `stalls` and `linear_iters`: `solvers.newton.NewtonResult.step_stats`); retries:
+    times the step was redone as two half steps after a failure (set by `solvers.simulate`, never by the solver).
     """
 
     wall_s: float

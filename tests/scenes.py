@@ -17,7 +17,7 @@ G = 9.81
 
 def block_drop(resolution: str | None = "coarse", clearance: float | None = 0.01, dt: float | None = 0.01,
                duration: float | None = 0.05, **tables: Any) -> dict[str, Any]:
-    """A scene's tables (the `frictionbench.scenarios.load` schema, without a name): the block mesh at `resolution`,
+    """A scene's tables (the `scenarios.load` schema, without a name): the block mesh at `resolution`,
     `clearance` [m] above the default plane, stepped by `dt` [s] for `duration` [s]; None leaves a value to the
     loader's default (a table left empty is left out); `tables` add or replace tables (material={...})."""
     scene = {"mesh": {"name": "block", "resolution": resolution}, "initial": {"clearance": clearance},
@@ -33,7 +33,7 @@ def mu_axis(*values: float) -> dict[str, Any]:
 
 def suite_tables(name: str, base: Mapping[str, Any] | None, *axes: Mapping[str, Any], description: str | None = None,
           **tables: Any) -> dict[str, Any]:
-    """A suite's tables (`frictionbench.scenarios.suites` format): its `base` scene (None: none), `axes` in order, and the other
+    """A suite's tables (`scenarios.suites` format): its `base` scene (None: none), `axes` in order, and the other
     tables (split, truth, extra) as given."""
     header = {"name": name} | ({"description": description} if description is not None else {})
     return ({"suite": header} | ({"base": dict(base)} if base is not None else {})

@@ -150,7 +150,7 @@ def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
     """The quick suite's references (one training member, the held-out one) and two reduced variants (a LiCROM
     checkpoint and a POD basis, both trained on the client and carried to the workers): the client's store gets
     every run, identical to a process-pool run's (trajectories, bases, metrics). The full-space runs are bitwise
-    equal (MKL's reproducible mode, `frictionbench.solvers.linalg`); a reduced run's dense products (torch evaluating the neural
+    equal (MKL's reproducible mode, `solvers.linalg`); a reduced run's dense products (torch evaluating the neural
     field's basis, BLAS) may round differently in a worker whose thread pools Dask's nanny started single-threaded
     than in one limited at run time, so its basis and states are compared to round-off (1e-12 of their size)."""
     variants = [Variant("licrom", LICROM | {"epochs": 2}, label="r20"), Variant("pod", {"r": 8}, label="r8")]

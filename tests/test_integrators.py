@@ -215,9 +215,9 @@ def test_an_unknown_integrator_is_refused_naming_the_field_the_value_and_the_kno
 
 
 def test_the_scenario_loader_says_so_when_no_integrator_is_registered():
-    """The bottom layer knows the names only from `frictionbench.solvers.integrators`: loading a scenario without it is a clear
+    """The bottom layer knows the names only from `solvers.integrators`: loading a scenario without it is a clear
     error, not a scenario that skipped validation."""
-    code = ("import frictionbench.scenarios.load as L\ntry:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n"
-            "    print(e)")
+    code = ("import frictionbench.scenarios.load as L\n"
+            "try:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n    print(e)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "import frictionbench.solvers.integrators" in done.stdout

@@ -177,7 +177,8 @@ def test_the_cli_lists_and_runs_installed_solvers_and_skips_an_unavailable_one(s
     assert "  drift" in solvers and "  full" in solvers
     assert f"  needy    unavailable: needs {MISSING!r}, which is not installed" in solvers
     out = tmp_path / "out"
-    run = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", "verify", "--only", "verify/block_fall",
+    run = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", "verify",
+                          "--only", "verify/block_fall",
                           "--solvers", "drift,needy", "--no-truth", "--no-report", "--out", str(out)],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600, check=False)
     assert run.returncode == 0, run.stderr

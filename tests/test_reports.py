@@ -118,7 +118,8 @@ def test_results_csv_column_order_and_round_trip(tmp_path: Path, runs) -> None:
 
 
 def test_provenance_fields_without_importing_torch() -> None:
-    code = ("import sys, json; from frictionbench.analysis.table import provenance; p = provenance('cpu', gpu_name=''); "
+    code = ("import sys, json; from frictionbench.analysis.table import provenance; "
+            "p = provenance('cpu', gpu_name=''); "
             "print(json.dumps({'torch_imported': 'torch' in sys.modules, 'keys': list(p), 'numpy': p['numpy_version'],"
             " 'commit': p['commit']}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)

@@ -30,7 +30,8 @@ def _simulate(tmp_path: Path, time_table: dict[str, float], *extra: str) -> tupl
     scene = write_toml(tmp_path / "scene.toml", {"name": "oversized", "time": time_table})
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "simulate", str(scene), "--out", str(tmp_path / "out"),
+    done = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "simulate", str(scene),
+                           "--out", str(tmp_path / "out"),
                            *extra], capture_output=True, text=True, timeout=60, env=env)
     return done, time.perf_counter() - t0
 

@@ -189,7 +189,8 @@ def test_sigterm_stops_the_workers_with_the_run(tmp_path):
 
     suite = write_toml(tmp_path / "long.toml", SUITE | {"base": block_drop(duration=60.0)})  # minutes per run
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", str(suite), "--solvers", "full", "--jobs", "2",
+    cmd = [sys.executable, "-m", "frictionbench.bench.cli", "run", "--suite", str(suite), "--solvers", "full",
+           "--jobs", "2",
            "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:

@@ -187,7 +187,8 @@ def test_shipped_suites_use_catalogue_names_of_the_mesh_module() -> None:
 
 
 def test_loader_does_not_import_the_mesh_module() -> None:
-    code = "import sys, frictionbench.scenarios.load, frictionbench.scenarios.suites; assert 'frictionbench.scenarios.meshes' not in sys.modules"
+    code = ("import sys, frictionbench.scenarios.load, frictionbench.scenarios.suites; "
+            "assert 'frictionbench.scenarios.meshes' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 

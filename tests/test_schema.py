@@ -12,8 +12,8 @@ import pytest
 
 from frictionbench.analysis import schema
 from frictionbench.analysis.rows import collect_rows
-from frictionbench.analysis.schema import (COLUMNS, Column, docs_table, docs_with_table, flag, is_missing, number, stability_metrics,
-                             truthy)
+from frictionbench.analysis.schema import (COLUMNS, Column, docs_table, docs_with_table, flag, is_missing, number,
+                                           stability_metrics, truthy)
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.bench.compare import compare_results, default_rules
 from frictionbench.bench.runner import StoreRuns, Task, Variant
@@ -50,7 +50,7 @@ def falling_tet(drop: float) -> Trajectory:
 
 
 class Store:
-    """Stored runs by key, as `frictionbench.bench.store.RunStore.load` gives them."""
+    """Stored runs by key, as `bench.store.RunStore.load` gives them."""
 
     def __init__(self, runs: dict[str, tuple[Trajectory, dict]]) -> None:
         self.runs = runs
@@ -61,7 +61,7 @@ class Store:
 
 def results(tmp_path: Path, drop: float) -> pd.DataFrame:
     """results.csv of one scenario: its reference and a variant that falls `drop` [m] further, built by
-    `frictionbench.analysis.rows.collect_rows` from stored runs through the harness's `StoreRuns`."""
+    `analysis.rows.collect_rows` from stored runs through the harness's `StoreRuns`."""
     sc = Scenario(name="toy", effects=Effects(friction=False))
     member = SuiteMember(sc, "test", {})
     variant = Variant("full", label="slower")

@@ -1,7 +1,7 @@
 """Physics terms as objects (solvers.physics.terms): each term's numpy reference is consistent (gradient and
 Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, the step hooks
 (`begin_step`, `max_step`) give what the solvers used to compute by name, and a term registered from a test with its
-backends' evaluations (`frictionbench.solvers.full.terms`, `frictionbench.solvers.licrom.terms`) is picked up by every solver."""
+backends' evaluations (`solvers.full.terms`, `solvers.licrom.terms`) is picked up by every solver."""
 
 from __future__ import annotations
 

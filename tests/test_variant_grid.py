@@ -1,4 +1,4 @@
-"""Variant grids are built from a solver's declared parameters (`frictionbench.bench.variants.grid`)."""
+"""Variant grids are built from a solver's declared parameters (`bench.variants.grid`)."""
 
 import pytest
 

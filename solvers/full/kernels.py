@@ -1,5 +1,5 @@
 """Warp kernels of the full-space solver (float64, CPU and CUDA); each mirrors a numpy reference in
-`frictionbench.solvers.physics` and is tested against it.
+`solvers.physics` and is tested against it.
 
 Hessians are accumulated into the values of a block-sparse (BSR, 3x3 blocks) matrix whose pattern is fixed
 by the mesh: `blockmap[16 e + 4 a + b]` is the block of the (tets[e, a], tets[e, b]) pair, `diag[i]` the

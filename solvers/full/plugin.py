@@ -1,4 +1,4 @@
-"""The full-space Newton solver under the solver contract (`frictionbench.solvers.contract`)."""
+"""The full-space Newton solver under the solver contract (`solvers.contract`)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from frictionbench.solvers.step_stats import StepStats
 
 
 class FullSpace(Solver):
-    """Implicit time stepping on every vertex (`frictionbench.solvers.full.solver.FullSpaceSolver`; every integrator of
-    `frictionbench.solvers.integrators`, the scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear`
-    solve (`auto`, `direct`, `pardiso`, `superlu`, `cg`; `frictionbench.solvers.linalg`) and `max_iter` Newton iterations per
+    """Implicit time stepping on every vertex (`solvers.full.solver.FullSpaceSolver`; every integrator of
+    `solvers.integrators`, the scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear`
+    solve (`auto`, `direct`, `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter` Newton iterations per
     attempt."""
 
     name = "full"

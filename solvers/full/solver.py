@@ -3,10 +3,10 @@
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
 the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with a multistep
 integrator (the model's, e.g. BDF2) h is its effective step h_eff (2/3 dt for BDF2) and x_hat = x_bar + h_eff v_bar
-(`frictionbench.solvers.integrators`). Only the terms the scene calls for are built (`frictionbench.solvers.physics.terms.terms_of`), each by
-its launcher (`frictionbench.solvers.full.terms`); an absent term launches no kernel. Newton directions come from the projected
+(`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`), each by
+its launcher (`solvers.full.terms`); an absent term launches no kernel. Newton directions come from the projected
 (PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E, in the
-shared loop of `frictionbench.solvers.newton`; the terms' feasible-step rule (`frictionbench.solvers.step`) caps the step (the barrier law: no
+shared loop of `solvers.newton`; the terms' feasible-step rule (`solvers.step`) caps the step (the barrier law: no
 contact point crosses the plane). Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the
 rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
 """
@@ -36,10 +36,10 @@ from frictionbench.solvers.warp_runtime import init_warp
 class NewtonSettings:
     """Newton tolerances: tol is relative to L per second; linear solver `pardiso` (MKL, SPD, analysis once),
     `superlu` (SciPy), `direct` (PARDISO where it loads, else SuperLU), `cg` (warp, block Jacobi) or `auto` (direct
-    on the CPU, cg on CUDA); see `frictionbench.solvers.linalg`.
+    on the CPU, cg on CUDA); see `solvers.linalg`.
 
     max_iter: iterations per attempt; a 20 m/s impact on a soft body needs up to ~200 in its impact step (measured
-    on the hard suite), and an attempt that runs out is retried as two half steps (`frictionbench.solvers.simulate`).
+    on the hard suite), and an attempt that runs out is retried as two half steps (`solvers.simulate`).
     """
 
     tol: float = 1e-5
@@ -84,7 +84,7 @@ class FullSpaceSolver:
     """Newton on the incremental potential of the model's integrator, kernels on `device` (`cpu` or `cuda`).
 
     Per step it holds the integrator's positions in warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar
-    (`frictionbench.solvers.integrators`); the terms' launchers (`frictionbench.solvers.full.terms`) hold what else they need of the step."""
+    (`solvers.integrators`); the terms' launchers (`solvers.full.terms`) hold what else they need of the step."""
 
     name = "full"
 
@@ -142,7 +142,7 @@ class FullSpaceSolver:
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
     def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:
         """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x: the launcher of
-        each of the model's terms (`frictionbench.solvers.full.terms`) launches its kernels.
+        each of the model's terms (`solvers.full.terms`) launches its kernels.
 
         inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
         """
@@ -177,7 +177,7 @@ class FullSpaceSolver:
     # ----- one time step --------------------------------------------------------------------------------
     def begin(self, step: StepData) -> None:
         """Take a step's constants: its positions x_hat, x_prev and x_bar (n, 3) [m] into the solver's arrays, then
-        each term's (`frictionbench.solvers.full.terms.Launcher.begin_step`)."""
+        each term's (`solvers.full.terms.Launcher.begin_step`)."""
         self.x_hat.assign(step.x_hat)
         self.x_prev.assign(step.x_prev)
         self.x_bar.assign(step.x_bar)
@@ -211,7 +211,7 @@ class FullSpaceSolver:
 
 
 class _StepProblem(StepProblem):
-    """One step's incremental potential (`frictionbench.solvers.step.StepProblem`) over the vertex positions (n, 3) [m]: h the
+    """One step's incremental potential (`solvers.step.StepProblem`) over the vertex positions (n, 3) [m]: h the
     time step [s] (1 with inertia=False: static equilibrium, where the step norm is |dx|_inf [m])."""
 
     def __init__(self, solver: FullSpaceSolver, h: float, inertia: bool = True) -> None:

@@ -1,7 +1,7 @@
 """Static equilibrium with clamped vertices (verification: cantilever under self-weight).
 
 Minimises sum_e V_e Psi(F_e) - sum_i m_i g . x_i over the free vertices by the shared Newton loop
-(`frictionbench.solvers.newton`) with the full-space solver's kernels (projected Hessian, direct solve on the free degrees of
+(`solvers.newton`) with the full-space solver's kernels (projected Hessian, direct solve on the free degrees of
 freedom, Armijo backtracking).
 """
 

@@ -1,5 +1,5 @@
-"""The full-space backend's evaluation of the physics terms (`frictionbench.solvers.physics.terms`) with its warp kernels
-(`frictionbench.solvers.full.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@LAUNCHERS.register(TermClass)`).
+"""The full-space backend's evaluation of the physics terms (`solvers.physics.terms`) with its warp kernels
+(`solvers.full.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@LAUNCHERS.register(TermClass)`).
 
 A launcher adds its term at positions x into the solver's buffers (mode 0: the energy into `energy_buf`; mode 1:
 the gradient into `grad` and the Hessian's 3x3 blocks into `values`) and keeps what it needs across a step in its

@@ -1,11 +1,11 @@
 """LiCROM networks: the PointNet encoder P(X, u) -> q and the neural field W(X), u(X) = W(X) q.
 
-Conventions (shared with `frictionbench.solvers.licrom.train` and the online solver):
+Conventions (shared with `solvers.licrom.train` and the online solver):
 - positions X are in metres; the field standardises them itself, Xhat = (X - X_mean) / X_scale, with one
   isotropic scale (so the shape keeps its aspect ratio and a rotation of X is a rotation of Xhat);
 - the basis W is dimensionless and the latent coordinates q carry metres: u [m] = W(X) q;
 - `r` is always the total number of basis columns. With `affine=True` the first 12 columns are the exact affine
-  fields `frictionbench.solvers.baselines.affine_fields(Xhat)` and the network supplies the remaining r - 12 (so r >= 13).
+  fields `solvers.baselines.affine_fields(Xhat)` and the network supplies the remaining r - 12 (so r >= 13).
 """
 
 from __future__ import annotations

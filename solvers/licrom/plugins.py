@@ -1,4 +1,4 @@
-"""Solvers of the reduced family under the solver contract (`frictionbench.solvers.contract`): `licrom` (trained neural field),
+"""Solvers of the reduced family under the solver contract (`solvers.contract`): `licrom` (trained neural field),
 `pod` (mesh-bound SVD modes), `affine` (the 12 affine fields).
 
 Each `setup(model)` builds a `ReducedSolver` (untimed); where a solver needs the suite's training data, its
@@ -62,7 +62,7 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
 class _Reduced(Solver):
     """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
     Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
-    `projected_gradient`), seed. Every integrator of `frictionbench.solvers.integrators` (the scenario's `time.integrator`) with
+    `projected_gradient`), seed. Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with
     either scheme."""
 
     integrators = tuple(INTEGRATORS)
@@ -173,7 +173,8 @@ def _train_licrom(shape: str, trajectories: list[Path], params: dict, models_dir
                   suite: str) -> dict:
     """Train the neural field of one shape on its training trajectories (cached under models_dir), and, for an
     optimised cubature, select it on the training mesh; returns `shape`, `checkpoint` (and `cubature_file`)."""
-    from frictionbench.solvers.licrom.train import TrainSettings, evaluate_basis, load_checkpoint, train_from_trajectories
+    from frictionbench.solvers.licrom.train import (TrainSettings, evaluate_basis, load_checkpoint,
+                                                    train_from_trajectories)
 
     settings = {k: params.get(k) if params.get(k) is not None else d
                 for k, d in (("r", 20), ("epochs", 100), ("affine", False), ("seed", 0), ("points", 512))}

@@ -7,7 +7,7 @@ Each step minimises the incremental potential of the full-space solver restricte
 
 with q_hat = q^n + h qdot^n for backward Euler; with a multistep integrator (the model's, e.g. BDF2), h is its
 effective step h_eff (2/3 dt for BDF2) and q_hat = q_bar + h_eff qdot_bar, the dissipative terms taking their
-velocity from the decoded x_bar = X + W q_bar (`frictionbench.solvers.integrators`: the formulas hold in latent coordinates, the
+velocity from the decoded x_bar = X + W q_bar (`solvers.integrators`: the formulas hold in latent coordinates, the
 decoding being linear). M_r = W^T M W (lumped M, factorised once), g_r = sum_i m_i W_i^T g, cubature tets
 (c, w_c) whose F_c(q) = F_c(0) + B_c q is linear in q (B_c = dvec F_c/dq constant), and the contact and friction
 laws of solvers/physics at the surface sample points x_p = X_p + W_p q (gradient W_p^T g_p, Hessian
@@ -15,7 +15,7 @@ W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the s
 
 Schemes:
 - "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky), run
-  by the shared loop of `frictionbench.solvers.newton` (Armijo backtracking with its round-off slack, and, for the barrier law,
+  by the shared loop of `solvers.newton` (Armijo backtracking with its round-off slack, and, for the barrier law,
   a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt).
   Converged when |W dq|_inf / h < tol * L over all mesh vertices (the full solver's measure; decoding dq costs
   one (3n x r) product).
@@ -353,7 +353,7 @@ class ReducedSolver:
         return st.q_prev + problem.max_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
     def _newton(self, st: ReducedStep) -> NewtonResult:
-        """Minimise E by the shared Newton loop (`frictionbench.solvers.newton`)."""
+        """Minimise E by the shared Newton loop (`solvers.newton`)."""
         problem = _StepProblem(self, st)
         return minimise(problem, self._initial_guess(st, problem), self.tol * self.model.L, self.max_iter,
                         LineSearch(self.armijo, self.max_halvings))
@@ -420,7 +420,7 @@ class ReducedSolver:
 
 
 class _StepProblem(StepProblem):
-    """One reduced step (`frictionbench.solvers.step.StepProblem`) over the latent coordinates q (r,)."""
+    """One reduced step (`solvers.step.StepProblem`) over the latent coordinates q (r,)."""
 
     def __init__(self, solver: ReducedSolver, st: ReducedStep) -> None:
         super().__init__(solver.model, solver.terms)

@@ -1,5 +1,5 @@
-"""The reduced backend's evaluation of the body terms (`frictionbench.solvers.physics.terms.BodyTerm`: inertia, gravity,
-elasticity, viscosity) in the latent coordinates of a `frictionbench.solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
+"""The reduced backend's evaluation of the body terms (`solvers.physics.terms.BodyTerm`: inertia, gravity,
+elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
 per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). The point terms (contact, damping,
 friction) need no entry: the solver evaluates them at its contact sample points by their `at_points`."""
 

@@ -7,7 +7,7 @@ the dissipative potential h k_d / 2 max(0, -v.n)^2 with v = (x - x^n)/h, active 
 the start of the step (`damped`, lagged like friction's normal force, so that the step's potential stays
 continuous; gating on the current penetration would make it jump where a point crosses the plane). With BDF2 the
 velocity is the integrator's, v = (x - x_bar) / h_eff, and the potential h_eff k_d / 2 max(0, -v.n)^2
-(`frictionbench.solvers.integrators`); the gate stays the penetration at the start of the step, x^n.
+(`solvers.integrators`); the gate stays the penetration at the start of the step, x^n.
 Barrier law (IPC): energy density kappa b(phi), b(d) = -(d - dhat)^2 log(d / dhat) for 0 < d < dhat, else 0.
 Arrays: x (p, 3) point positions, area (p,) [m^2]; energies in J, gradients (p, 3) in N, Hessians (p, 3, 3).
 The terms `PenaltyContact`, `ContactDamping` (the penalty law's damping part) and `BarrierContact` evaluate them
@@ -177,7 +177,7 @@ class BarrierContact(PointTerm):
         return E, g, H
 
     def max_step(self, model: Model, x: np.ndarray, dx: np.ndarray) -> float:
-        """The barrier is infinite on the plane: no contact point may cross it (`frictionbench.solvers.newton.feasible_step`)."""
+        """The barrier is infinite on the plane: no contact point may cross it (`solvers.newton.feasible_step`)."""
         return feasible_step(signed_distance(x, model.plane_normal, model.plane_offset), dx @ model.plane_normal)
 
 

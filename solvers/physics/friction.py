@@ -5,7 +5,7 @@ D = A h mu f_n f0(|v_t|), v_t = T (x - x^n) / h, T = I - n n^T, with f0' = f1, f
 eps_v = mu f_n / k_f. So the force is -A min(k_f |v_t|, mu f_n) v_t / |v_t|: viscous (k_f) below eps_v,
 Coulomb above. f0(s) = s^2 / (2 eps_v) for s < eps_v, s - eps_v / 2 beyond. A body that should stick creeps
 at the speed (tangential load per area) / k_f. With BDF2, x^n and h are the integrator's x_bar and effective step h_eff
-(`frictionbench.solvers.integrators`): the functions below take them as x_prev and h.
+(`solvers.integrators`): the functions below take them as x_prev and h.
 Arrays: x, x_prev (p, 3), area (p,) [m^2], fn (p,) [Pa]; energies J, gradients (p, 3) N, Hessians (p, 3, 3).
 `Friction` is the term at a model's contact points.
 """

@@ -1,5 +1,5 @@
 """Inertia and gravity: lumped mass, the inertial term of the incremental potential (backward Euler's, or BDF2's with
-its target x_tilde and effective step h_eff, `frictionbench.solvers.integrators`) and the potential of uniform gravity, with their
+its target x_tilde and effective step h_eff, `solvers.integrators`) and the potential of uniform gravity, with their
 `Term` objects."""
 
 from __future__ import annotations

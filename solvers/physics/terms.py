@@ -8,7 +8,7 @@ points: `begin_step` fixes what the term lags from the start of the step (fricti
 `max_step` caps a Newton step (the barrier law: no point may cross the plane; `max_feasible_step` is the one rule
 both solvers apply). A `PointTerm` (contact, damping, friction) is pure maths at any sample points (`at_points`).
 The physics knows no backend: each backend implements the evaluation of the terms in its own package, in a table
-keyed by the term's class (`frictionbench.solvers.full.terms` with the warp kernels, `frictionbench.solvers.licrom.terms` with the reduced
+keyed by the term's class (`solvers.full.terms` with the warp kernels, `solvers.licrom.terms` with the reduced
 evaluations of the body terms; the reduced solver sums the point terms' `at_points` itself).
 `applies(model)` says whether a scene has a term; a solver takes `terms_of(model)` and loops over them. A term is
 a class registered here by `@register` in a module of solvers/physics (every module of the package is imported;
@@ -34,14 +34,13 @@ from frictionbench.solvers.scene import Model
 Evaluation = tuple[float, np.ndarray | None, np.ndarray | None]
 
 #: The modules that define terms, in the order their terms are summed.
-_MODULES = ("frictionbench.solvers.physics.inertia", "frictionbench.solvers.physics.material", "frictionbench.solvers.physics.viscosity",
-            "frictionbench.solvers.physics.contact", "frictionbench.solvers.physics.friction")
+_MODULES = tuple(f"{__package__}.{name}" for name in ("inertia", "material", "viscosity", "contact", "friction"))
 _TERMS: list["Term"] = []
 
 
 @dataclass(frozen=True)
 class StepData:
-    """One step's constants (`frictionbench.solvers.integrators`): the inertial target x_hat = x_tilde = x_bar + h_eff v_bar (n, 3)
+    """One step's constants (`solvers.integrators`): the inertial target x_hat = x_tilde = x_bar + h_eff v_bar (n, 3)
     [m], the start-of-step positions x_prev = x^n (n, 3) [m], the time step h [s], the lagged normal pressure fn (p,)
     [Pa] at the model's contact points (None without friction), `inertia` (False: static equilibrium, no inertial
     term), and the integrator's x_bar (n, 3) [m] and effective step h_eff [s]: the inertial term is
@@ -98,7 +97,7 @@ class Term(ABC):
 
 class BodyTerm(Term):
     """A term over the whole body (inertia, gravity, elasticity, viscosity): each backend evaluates it by its own
-    table (`frictionbench.solvers.full.terms`, `frictionbench.solvers.licrom.terms`)."""
+    table (`solvers.full.terms`, `solvers.licrom.terms`)."""
 
 
 class PointTerm(Term):
