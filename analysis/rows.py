@@ -66,6 +66,12 @@ class Runs(Protocol):
     def key(self, scenario: Scenario, solver: str, mesh: MeshSpec | None) -> str: ...
 
 
+def ladder_label(integrator: str, k: int) -> str:
+    """The variant label of level k (dt / 2^k) of a truth ladder with `integrator`; the rows carry both as their own
+    columns (`ladder`, `ladder_level`), so nothing reads them back from the label."""
+    return f"ladder-{integrator}-{k}"
+
+
 def truth_columns(ladders: Mapping[str, LadderRuns], spec_tol: float
                   ) -> tuple[dict, TruthEstimate | None, RunTask | None]:
     """(the truth columns of every row of a scenario, its estimate, the truth's task) from its ladders (the
@@ -132,7 +138,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
         for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
             for k, task in enumerate(ladder.tasks):
                 traj, stats = runs.load(task.key)
-                rows.append(base | {"solver": task.solver, "variant": f"ladder-{integrator}-{k}", "ladder": integrator,
+                rows.append(base | {"solver": task.solver, "variant": ladder_label(integrator, k), "ladder": integrator,
                                     "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt,
                                     "integrator": integrator}
                             | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)

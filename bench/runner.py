@@ -22,7 +22,7 @@ import numpy as np
 from tqdm import tqdm
 
 from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel
-from frictionbench.analysis.rows import collect_rows
+from frictionbench.analysis.rows import collect_rows, ladder_label
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.analysis.truth import ladder_continues
 from frictionbench.bench.executors import make_executor
@@ -269,7 +269,7 @@ def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENC
     overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k else {}
     if integrator != sc.time.integrator:
         overrides["time.integrator"] = integrator
-    return Variant(solver, {}, label=f"ladder-{integrator}-{k}", overrides=overrides, dt_scale=0.5 ** k)
+    return Variant(solver, {}, label=ladder_label(integrator, k), overrides=overrides, dt_scale=0.5 ** k)
 
 
 @dataclass
