@@ -8,7 +8,6 @@ import sys
 import threading
 from pathlib import Path
 
-import frictionbench.solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TruthSpec

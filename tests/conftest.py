@@ -6,7 +6,6 @@ from __future__ import annotations
 import pytest
 from threadpoolctl import threadpool_limits
 
-import frictionbench.solvers.integrators  # noqa: F401  (registers the integrator names the scenario loader accepts)
 from frictionbench.scenarios.meshes import load_mesh
 from frictionbench.scenarios.model import MeshSpec
 

@@ -214,10 +214,13 @@ def test_an_unknown_integrator_is_refused_naming_the_field_the_value_and_the_kno
         get_integrator("rk4")
 
 
-def test_the_scenario_loader_says_so_when_no_integrator_is_registered():
-    """The bottom layer knows the names only from `solvers.integrators`: loading a scenario without it is a clear
-    error, not a scenario that skipped validation."""
+def test_the_scenario_loader_knows_the_integrators_in_a_fresh_interpreter():
+    """The bottom layer knows the names only from `solvers.integrators`, which importing the package registers: a
+    program that imports the loader alone validates `time.integrator` against them."""
     code = ("import frictionbench.scenarios.load as L\n"
-            "try:\n    L.scenario_from_dict({'name': 'x'})\nexcept RuntimeError as e:\n    print(e)")
+            "print(L.scenario_from_dict({'name': 'x', 'time': {'integrator': 'bdf2'}}).time.integrator)\n"
+            "try:\n    L.scenario_from_dict({'name': 'x', 'time': {'integrator': 'rk4'}})\n"
+            "except L.ScenarioError as e:\n    print(e)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert "import frictionbench.solvers.integrators" in done.stdout
+    assert done.stdout.splitlines()[0] == "bdf2"
+    assert "time.integrator" in done.stdout and "'rk4'" in done.stdout
