@@ -1,7 +1,8 @@
 """Physics terms as objects (solvers.physics.terms): each term's numpy reference is consistent (gradient and
 Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, the step hooks
 (`begin_step`, `max_step`) give what the solvers used to compute by name, and a term registered from a test with its
-backends' evaluations (`solvers.full.terms`, `solvers.licrom.terms`) is picked up by every solver."""
+backends' evaluations (`solvers.full.terms`, `solvers.licrom.terms`) is picked up by every solver;
+one with only a full-space launcher runs in the reduced solver from its numpy reference."""
 
 from __future__ import annotations
 
@@ -12,15 +13,17 @@ import pytest
 import scipy.sparse as sp
 
 from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import affine_basis
+from frictionbench.solvers.baselines import affine_basis, full_basis
 from frictionbench.solvers.full import terms as FT
-from frictionbench.solvers.full.solver import FullSpaceSolver
+from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.licrom import terms as LT
-from frictionbench.solvers.licrom.reduced import ReducedSolver
+from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep
 from frictionbench.solvers.model import Model, build_model, initial_state
 from frictionbench.solvers.newton import feasible_step
 from frictionbench.solvers.physics import terms as T
 from frictionbench.solvers.physics.contact import lagged_pressure
+from frictionbench.solvers.physics.inertia import Gravity, Inertia
+from frictionbench.solvers.physics.material import Elasticity
 from frictionbench.solvers.simulate import simulate
 
 from scenes import G, incline
@@ -164,13 +167,116 @@ def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solv
 
 
 def test_a_term_without_a_backend_evaluation_is_refused_by_name(block, monkeypatch):
+    """The full-space solver refuses a term without a launcher; the reduced one evaluates a body term without an
+    evaluation of its own from its numpy reference, and the built-in terms by their dedicated evaluations."""
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Push)
     model = build_model(PENALTY, block)
     with pytest.raises(ValueError, match=r"\['push'\] have no full-space launcher"):
         FullSpaceSolver(model)
-    with pytest.raises(ValueError, match=r"\['push'\] have no reduced evaluation"):
-        ReducedSolver(model, affine_basis(model.X))
+    kinds = {e.term.name: type(e) for e in ReducedSolver(model, affine_basis(model.X)).body_evaluations}
+    assert kinds == {"inertia": LT.EVALUATIONS.classes[Inertia], "gravity": LT.EVALUATIONS.classes[Gravity],
+                     "elasticity": LT.EVALUATIONS.classes[Elasticity], "push": LT.ReferenceEvaluation}
+    assert LT.ReferenceEvaluation not in LT.EVALUATIONS.classes.values()
+
+
+class Drag(T.BodyTerm):
+    """A test term with only its numpy reference and a full-space launcher: mass-proportional drag c/(2 h_eff)
+    sum_i m_i |x_i - x_bar_i|^2 [J] (c [1/s]) and a uniform push -sum_i m_i f . x_i."""
+
+    name = "drag"
+    c, f = 5.0, np.array([2.0, 0.0, -1.0])
+
+    def applies(self, model: Model) -> bool:
+        return True
+
+    def energy(self, model, step, x) -> float:
+        d = x - step.x_bar
+        return float(0.5 * self.c / step.h_eff * model.mass @ np.sum(d * d, axis=1) - model.mass @ (x @ self.f))
+
+    def gradient(self, model, step, x) -> np.ndarray:
+        return model.mass[:, None] * (self.c / step.h_eff * (x - step.x_bar) - self.f)
+
+    def hessian(self, model, step, x) -> sp.csr_matrix:
+        return sp.diags(np.repeat(self.c / step.h_eff * model.mass, 3)).tocsr()
+
+
+class DragLaunch(FT.Launcher):
+    """Drag on the full-space solver: the inertia-gravity kernel about x_bar with coefficient c / h and f."""
+
+    def launch(self, x, h, mode, inertia) -> None:
+        import warp as wp
+
+        from frictionbench.solvers.full import kernels as K
+
+        s = self.solver
+        wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
+            x, s.x_bar, s.mass, self.term.c / h if inertia else 0.0, wp.vec3d(*self.term.f), s.diag, s.grad,
+            s.values, s.energy_buf, mode])
+
+
+@pytest.fixture
+def drag(monkeypatch):
+    """Drag registered with its physics class and a full-space launcher only."""
+    monkeypatch.setattr(T, "_TERMS", T.all_terms())
+    T.register(Drag)
+    monkeypatch.setitem(FT.LAUNCHERS.classes, Drag, DragLaunch)
+
+
+def _reduced_step(solver: ReducedSolver, seed: int) -> tuple[ReducedStep, list[np.ndarray]]:
+    """A BDF2-like ReducedStep (x_bar away from x^n, h_eff = 2/3 h) at random latent coordinates, and two more q."""
+    rng = np.random.default_rng(seed)
+    q_prev, q_bar, q_hat, q, q2 = 1e-3 * rng.standard_normal((5, solver.reduced.r))
+    pos = solver.reduced.point_positions
+    return ReducedStep(0.01, 0.01 * 2 / 3, q_prev, q_bar, q_hat, pos(q_prev), pos(q_bar), None), [q, q2]
+
+
+def test_the_reference_evaluation_is_the_projected_numpy_reference(block, drag):
+    model = build_model(replace(PENALTY, material=replace(PENALTY.material, viscosity=20.0)), block)
+    solver = ReducedSolver(model, affine_basis(model.X), scheme="projected_gradient")
+    st, (q, q2) = _reduced_step(solver, 6)
+    W, X = solver.reduced.W, model.X
+    step = T.StepData(X + W @ st.q_hat, X + W @ st.q_prev, st.h, x_bar=X + W @ st.q_bar, h_eff=st.h_eff)
+    (generic,) = [e for e in solver.body_evaluations if isinstance(e.term, Drag)]
+    assert type(generic) is LT.ReferenceEvaluation
+    term, x = generic.term, X + W @ q
+    E, g, H = generic.reduced(q, st, 2)
+    assert E == pytest.approx(term.energy(model, step, x), rel=1e-14)
+    g_ref = np.einsum("nak,na->k", W, term.gradient(model, step, x))
+    assert np.abs(g - g_ref).max() <= 1e-13 * np.abs(g_ref).max()
+    Wf = W.reshape(-1, W.shape[2])
+    H_ref = Wf.T @ term.hessian(model, step, x).toarray() @ Wf
+    assert np.abs(H - H_ref).max() <= 1e-13 * np.abs(H_ref).max()
+    assert generic.reduced(q, st, 0) == (E, None, None) and generic.reduced(q, st, 1)[2] is None
+    u, u_hat = (solver.reduced.decode(p)[solver.samples.vertices] for p in (q, st.q_hat))
+    assert np.array_equal(generic.sample_gradient(q, st, u, u_hat),
+                          term.gradient(model, step, x)[solver.samples.vertices])
+    # every built-in body term's dedicated evaluation (all tets as cubature: exact) is its projected reference too
+    for dedicated in solver.body_evaluations:
+        ref = LT.ReferenceEvaluation(solver, dedicated.term)
+        (E, g, H), (E_ref, g_ref, H_ref) = dedicated.reduced(q, st, 2), ref.reduced(q, st, 2)
+        dE, dE_ref = E - dedicated.reduced(q2, st, 0)[0], E_ref - ref.reduced(q2, st, 0)[0]  # gravity: up to a constant
+        assert dE == pytest.approx(dE_ref, rel=1e-10), dedicated.term.name
+        assert np.abs(g - g_ref).max() <= 1e-11 * np.abs(g_ref).max(), dedicated.term.name
+        H, H_ref = (np.zeros_like(H_ref) if H is None else H), H_ref
+        assert np.abs(H - H_ref).max() <= 1e-11 * np.abs(H_ref).max() + 1e-300, dedicated.term.name
+        sg, sg_ref = dedicated.sample_gradient(q, st, u, u_hat), ref.sample_gradient(q, st, u, u_hat)
+        assert np.abs(sg - sg_ref).max() <= 1e-11 * np.abs(sg_ref).max(), dedicated.term.name
+
+
+@pytest.mark.parametrize("integrator", ["backward-euler", "bdf2"])
+def test_a_term_with_only_its_reference_runs_in_the_reduced_solver(block, drag, integrator):
+    """With the complete basis, a reduced run with Drag (evaluated from its numpy reference) is the full-space run."""
+    sc = replace(incline(30.0, 0.2), time=TimeSpec(dt=0.01, duration=0.05, integrator=integrator))
+    model = build_model(sc, block)
+    assert [t.name for t in T.terms_of(model)][-1] == "drag"
+    ref, _ = simulate(model, FullSpaceSolver(model, settings=NewtonSettings(tol=1e-8)))
+    solver = ReducedSolver(model, full_basis(model.n), tol=1e-8)
+    assert type(solver.body_evaluations[-1]) is LT.ReferenceEvaluation
+    traj, stats = simulate(model, solver, solver.project(initial_state(model)))
+    assert all(s.converged for s in stats)
+    assert np.abs(traj.x - ref.x).max() < 1e-9 * model.L
+    assert np.abs(traj.v - ref.v).max() < 1e-9 * model.L / 0.01
 
 
 def test_the_step_hooks_lag_the_pressure_and_cap_the_step(scene):

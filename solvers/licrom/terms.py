@@ -1,7 +1,9 @@
 """The reduced backend's evaluation of the body terms (`solvers.physics.terms.BodyTerm`: inertia, gravity,
 elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
-per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). The point terms (contact, damping,
-friction) need no entry: the solver evaluates them at its contact sample points by their `at_points`."""
+per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). A body term without an entry is
+evaluated from its numpy reference (`ReferenceEvaluation`, the table's default): exact, but a full-mesh evaluation
+per call; a dedicated evaluation makes it fast. The point terms (contact, damping, friction) need no entry: the
+solver evaluates them at its contact sample points by their `at_points`."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import numpy as np
 from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.physics.inertia import Gravity, Inertia
 from frictionbench.solvers.physics.material import Elasticity
-from frictionbench.solvers.physics.terms import Evaluation, Term, TermTable
+from frictionbench.solvers.physics.terms import Evaluation, StepData, Term, TermTable
 from frictionbench.solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
 
 if TYPE_CHECKING:
@@ -37,8 +39,47 @@ class BodyEvaluation(ABC):
         displacements are u and u_hat (k, 3) [m] at q and q_hat."""
 
 
-#: The reduced evaluation of each body term class (`EVALUATIONS.build(rs, body_terms)`: one per term).
-EVALUATIONS: TermTable[BodyEvaluation] = TermTable("reduced evaluation (solvers.licrom.terms.EVALUATIONS)")
+class ReferenceEvaluation(BodyEvaluation):
+    """Any body term from its numpy reference (`Term.energy`, `gradient`, `hessian`) at the decoded positions
+    x = X + W q, with the step's constants decoded likewise (x_hat, x_prev and x_bar from q_hat, q^n and q_bar):
+    E(x), W^T g and W^T H W, and at the projected-gradient scheme's sample vertices the full gradient's rows there.
+    Exact, but slow: every call decodes q and evaluates the term over the full mesh (and the Hessian's product costs
+    O(nnz(H) r + n r^2)); a dedicated `BodyEvaluation` in `EVALUATIONS` (as the built-in terms have) makes it fast."""
+
+    def __init__(self, rs: ReducedSolver, term: Term) -> None:
+        super().__init__(rs, term)
+        self._step: tuple[ReducedStep | None, StepData | None] = (None, None)  # the last step and its StepData
+
+    def _positions(self, q: np.ndarray) -> np.ndarray:
+        """X + W q (n, 3) [m]."""
+        return self.rs.model.X + self.rs.reduced.decode(q)
+
+    def _step_data(self, st: ReducedStep) -> StepData:
+        """The full-space StepData of the reduced step st (decoded once per step)."""
+        if self._step[0] is not st:
+            self._step = st, StepData(self._positions(st.q_hat), self._positions(st.q_prev), st.h,
+                                      x_bar=self._positions(st.q_bar), h_eff=st.h_eff)
+        return self._step[1]
+
+    def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
+        """E(X + W q), W^T g and W^T H W."""
+        m, step, x = self.rs.model, self._step_data(st), self._positions(q)
+        E = self.term.energy(m, step, x)
+        if order == 0:
+            return E, None, None
+        Wf = self.rs.reduced.W.reshape(3 * m.n, -1)
+        g = Wf.T @ self.term.gradient(m, step, x).ravel()
+        return E, g, (Wf.T @ (self.term.hessian(m, step, x) @ Wf) if order == 2 else None)
+
+    def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
+        """The full gradient's rows at the sample vertices."""
+        return self.term.gradient(self.rs.model, self._step_data(st), self._positions(q))[self.rs.samples.vertices]
+
+
+#: The reduced evaluation of each body term class (`EVALUATIONS.build(rs, body_terms)`: one per term; a term
+#: without one gets `ReferenceEvaluation`).
+EVALUATIONS: TermTable[BodyEvaluation] = TermTable("reduced evaluation (solvers.licrom.terms.EVALUATIONS)",
+                                                   default=ReferenceEvaluation)
 
 
 @EVALUATIONS.register(Inertia)

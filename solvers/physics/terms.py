@@ -9,7 +9,8 @@ points: `begin_step` fixes what the term lags from the start of the step (fricti
 both solvers apply). A `PointTerm` (contact, damping, friction) is pure maths at any sample points (`at_points`).
 The physics knows no backend: each backend implements the evaluation of the terms in its own package, in a table
 keyed by the term's class (`solvers.full.terms` with the warp kernels, `solvers.licrom.terms` with the reduced
-evaluations of the body terms; the reduced solver sums the point terms' `at_points` itself).
+evaluations of the body terms, its default the term's numpy reference; the reduced solver sums the point terms'
+`at_points` itself).
 `applies(model)` says whether a scene has a term; a solver takes `terms_of(model)` and loops over them. A term is
 a class registered here by `@register` in a module of solvers/physics (every module of the package is imported;
 `_MODULES` gives the summation order of the built-in ones).
@@ -97,7 +98,8 @@ class Term(ABC):
 
 class BodyTerm(Term):
     """A term over the whole body (inertia, gravity, elasticity, viscosity): each backend evaluates it by its own
-    table (`solvers.full.terms`, `solvers.licrom.terms`)."""
+    table (`solvers.full.terms`, `solvers.licrom.terms`: there by default from its numpy
+    reference)."""
 
 
 class PointTerm(Term):
@@ -176,10 +178,12 @@ Impl = TypeVar("Impl")
 @dataclass
 class TermTable(Generic[Impl]):
     """A backend's evaluation class for each term class (`classes`), registered by `@table.register(TermClass)`;
-    `what` names it in errors (e.g. "full-space launcher")."""
+    `what` names it in errors (e.g. "full-space launcher"); `default`: the class of the terms without one (None:
+    such terms are refused)."""
 
     what: str
     classes: dict[type[Term], type[Impl]] = field(default_factory=dict)
+    default: type[Impl] | None = None
 
     def register(self, *term_classes: type[Term]) -> Callable[[type[Impl]], type[Impl]]:
         """Register an evaluation class for `term_classes` (class decorator)."""
@@ -190,12 +194,12 @@ class TermTable(Generic[Impl]):
         return add
 
     def build(self, backend: object, terms: Sequence[Term]) -> list[Impl]:
-        """An evaluation `cls(backend, term)` of each of `terms`, in their order; ValueError naming the terms
-        without one."""
-        missing = [t.name for t in terms if type(t) not in self.classes]
+        """An evaluation `cls(backend, term)` of each of `terms`, in their order (`default` for the terms without a
+        class of their own); ValueError naming the terms without one where there is no default."""
+        missing = [t.name for t in terms if type(t) not in self.classes and self.default is None]
         if missing:
             raise ValueError(f"terms {missing} have no {self.what}")
-        return [self.classes[type(t)](backend, t) for t in terms]
+        return [self.classes.get(type(t), self.default)(backend, t) for t in terms]
 
 
 # ----- helpers of the numpy references ---------------------------------------------------------------------------
