@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from frictionbench.bench import unchanged
 from frictionbench.bench.unchanged import compare_results, compare_verdicts, main, values_equal
 
 
@@ -109,3 +110,17 @@ def test_gates_on_timing_are_not_judged() -> None:
     gates = [{"suite": "quick", "variant": "licrom/licrom", "metric": "speedup", "min": 5.0}]
     slower = table().assign(speedup=[1.0, 20.0, None])
     assert compare_verdicts(slower, slower.assign(speedup=[1.0, 2.0, None]), "quick", gates) == []
+
+
+@pytest.mark.parametrize("layout, cli", [("package", "frictionbench.bench.cli"), ("top-level", "bench.cli")])
+def test_a_checkout_runs_its_own_command_line(tmp_path, monkeypatch, layout, cli) -> None:
+    """`--base` runs a commit's own code: a checkout with the one import name runs `frictionbench.bench.cli`, one
+    from before it (its packages top-level, as at a40404c) `bench.cli`, each with the checkout first on the path."""
+    if layout == "package":
+        (tmp_path / "frictionbench").mkdir()
+        (tmp_path / "frictionbench" / "__init__.py").write_text("")
+    ran = []
+    monkeypatch.setattr(unchanged.subprocess, "run", lambda cmd, cwd, env, check: ran.append((cmd, cwd, env)))
+    unchanged.run_suite_at(tmp_path, "quick", tmp_path / "out", 2)
+    ((cmd, cwd, env),) = ran
+    assert cmd[1:4] == ["-m", cli, "run"] and cwd == tmp_path and env["PYTHONPATH"] == str(tmp_path)
