@@ -16,19 +16,12 @@ SuperLU). `PARDISO_ERROR` says why PARDISO is unavailable ('' where it loads).
 
 from __future__ import annotations
 
-import os
 import weakref
 from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-
-#: MKL's conditional numerical reproducibility, set before MKL loads (a user's MKL_CBWR wins): without it, a process
-#: started with MKL_NUM_THREADS=1 (as Dask's worker nanny starts them) takes another code path than one limited to a
-#: thread at run time (threadpoolctl, the process pool), and their trajectories differ in the last bits (measured:
-#: 2.8e-16 m after 40 steps of quick/p1_mu0.1), which a reduced model trained on them amplifies.
-os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 try:  # loading pypardiso loads MKL's runtime (mkl_rt), so thread-pool limits entered later apply to it
     import pypardiso

@@ -7,7 +7,7 @@ reduced solver runs, and so that a worker process can import a solver registered
 Three sources, later ones winning for a name they share: the solvers an installed package declares in the entry-point
 group `frictionbench.solvers` (`name = "module:Class"` in its `[project.entry-points."frictionbench.solvers"]`,
 read once per process), this repository's own (`_ENTRIES`), and those `register`ed at run time. A solver whose
-module does not import, or which `requires` a package that is not installed or does not import, is unavailable:
+module does not import, or which `requires` a package that is not installed, is unavailable:
 `get_solver` raises `SolverUnavailable` with the reason, which `unavailable` returns.
 """
 
@@ -69,13 +69,11 @@ def solver_names() -> list[str]:
 
 
 def _requirement_missing(package: str) -> str | None:
-    """Why the package (an import name) cannot be used here: not installed, or its import fails; None if it can."""
-    try:
-        if importlib.util.find_spec(package) is None:
-            return f"needs {package!r}, which is not installed"
-        importlib.import_module(package)
-    except Exception as err:  # a broken installation fails in any way: the solver is unavailable, with why
-        return f"needs {package!r}, whose import fails ({type(err).__name__}: {err})"
+    """Why the package (an import name) cannot be used here, None if it can: whether it is installed, asked of
+    the import system without importing it (so that a solver's heavy packages, torch for `licrom`, load only when
+    it runs: where they load first changes which thread pools and library modes they take)."""
+    if importlib.util.find_spec(package) is None:
+        return f"needs {package!r}, which is not installed"
     return None
 
 
