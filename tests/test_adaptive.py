@@ -334,3 +334,12 @@ def test_the_step_size_figure_marks_rejected_steps():
     assert line["x"] == pytest.approx([0.01, 0.012, 0.016]) and line["y"] == [0.01, 0.002, 0.004]
     assert marks["x"] == pytest.approx([0.012]) and "3 rejected" in marks["hovertext"][0]
     assert fig["layout"]["yaxis"]["type"] == "log"
+
+
+def test_the_adaptive_variant_set_runs_the_reference_solver_with_adaptive_bdf2():
+    from frictionbench.bench.variants import ADAPTIVE_TOLS, variant_set
+
+    sc = scenario_from_dict(block_drop() | {"name": "x"})
+    scenarios = [v.scenario(sc) for v in variant_set("adaptive")]
+    assert [s.time.tol for s in scenarios] == list(ADAPTIVE_TOLS)
+    assert all(s.time.integrator == "bdf2" and s.time.dt == sc.time.dt for s in scenarios)
