@@ -14,6 +14,7 @@ from collections.abc import Iterable
 
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.model import MAX_STEPS, MeshSpec, Scenario, TimeSpec
+
 #: Most bytes the stored frames of one run may take, in memory and again on disk, without an override.
 MAX_STORED_BYTES = 2 * 2**30
 #: Arrays stored per frame (positions and velocities), each (n, 3) float64.
