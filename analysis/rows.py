@@ -20,8 +20,8 @@ from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
 from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
 from frictionbench.analysis.schema import computed
 from frictionbench.analysis.transfer import transfer_to_mesh
-from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, wall_s_per_sim_s,
-                                          with_frontier)
+from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, level_ratio,
+                                          wall_s_per_sim_s, with_frontier)
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import Suite, SuiteMember, TruthSpec
 from frictionbench.solvers.integrators import get_integrator
@@ -66,25 +66,29 @@ class Runs(Protocol):
     def key(self, scenario: Scenario, solver: str, mesh: MeshSpec | None) -> str: ...
 
 
-def ladder_label(integrator: str, k: int) -> str:
-    """The variant label of level k (dt / 2^k) of a truth ladder with `integrator`; the rows carry both as their own
-    columns (`ladder`, `ladder_level`), so nothing reads them back from the label."""
-    return f"ladder-{integrator}-{k}"
+def ladder_label(integrator: str, k: int, kind: str = "step") -> str:
+    """The variant label of level k of a truth ladder with `integrator` (`[truth]` kind "step": dt / 2^k, kind
+    "tolerance": time.tol = start_tol / 8^k, labelled `ladder-<integrator>-tol<k>`); the rows carry the integrator and
+    k as their own columns (`ladder`, `ladder_level`), so nothing reads them back from the label."""
+    return f"ladder-{integrator}-{k}" if kind == "step" else f"ladder-{integrator}-tol{k}"
 
 
-def truth_columns(ladders: Mapping[str, LadderRuns], spec_tol: float
+def truth_columns(ladders: Mapping[str, LadderRuns], spec_tol: float, kind: str = "step"
                   ) -> tuple[dict, TruthEstimate | None, RunTask | None]:
     """(the truth columns of every row of a scenario, its estimate, the truth's task) from its ladders (the
-    truth's first); no truth where its ladder's first run failed."""
+    truth's first) of `kind` (`[truth]` kind: the Richardson estimate takes its `level_ratio`; a tolerance ladder's
+    truth also gives its time.tol, `truth_tol`); no truth where its ladder's first run failed."""
     truth = next(iter(ladders.values()))
     if not truth.tasks:
         return {"truth_certified": False, "truth_integrator": truth.integrator}, None, None
-    est = assess_ladder(truth.differences, spec_tol, get_integrator(truth.integrator))
+    integrator = get_integrator(truth.integrator)
+    est = assess_ladder(truth.differences, spec_tol, integrator, level_ratio(kind, integrator))
     finest = truth.tasks[-1]
     horizon = certified_horizon(*truth.frame_differences, spec_tol) if truth.frame_differences else None
     return ({"truth_certified": est.certified and not truth.failed, "truth_err_est": est.err_est,
              "truth_order": est.order, "truth_dt": finest.scenario.time.dt, "truth_depth": est.level,
-             "truth_integrator": truth.integrator, "truth_horizon_s": horizon}, est, finest)
+             "truth_integrator": truth.integrator, "truth_horizon_s": horizon}
+            | ({"truth_tol": finest.scenario.time.tol} if kind == "tolerance" else {}), est, finest)
 
 
 def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
@@ -107,7 +111,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
         truth_traj = truth_early = None
         if ladders and sc.name in ladders:
-            columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0)
+            columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0,
+                                                   truth.kind if truth else "step")
             base |= columns
             truth_traj = runs.load(truth_task.key)[0] if truth_task else None
             if truth_traj is not None and columns.get("truth_horizon_s") is not None:
@@ -138,7 +143,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
         for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
             for k, task in enumerate(ladder.tasks):
                 traj, stats = runs.load(task.key)
-                rows.append(base | {"solver": task.solver, "variant": ladder_label(integrator, k), "ladder": integrator,
+                label = ladder_label(integrator, k, truth.kind if truth else "step")
+                rows.append(base | {"solver": task.solver, "variant": label, "ladder": integrator,
                                     "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt,
                                     "integrator": integrator}
                             | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)
@@ -175,15 +181,25 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
 
 
+#: The columns of an adaptive run (`solvers.step_stats.stats_summary`, `solvers.run.run_scenario`), on its rows only.
+ADAPTIVE_COLUMNS = ("tol", "steps", "rejected_steps", "steps_over_tol", "dt_min_used", "dt_median")
+
+
 def run_timing(stats: dict, ref_stats: dict, dt: float) -> dict:
     """Timing and solver-health columns (Newton failures, line-search stalls, step retries, the linear solver that
     ran: `linear_solver` of a full-space run's stats); speedup = the reference's step time / this step time, both
-    measured in this run; wall_s_per_sim_s = the steps' wall time per simulated second at time step dt [s]
-    (warm-up, setup and training apart)."""
+    measured in this run; wall_s_per_sim_s = the steps' wall time per simulated second at time step dt [s], an
+    adaptive run's over the sum of its steps' sizes (warm-up, setup and training apart), whose rows also get
+    ADAPTIVE_COLUMNS."""
     keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
             "newton_iters_max", "not_converged", "line_search_stalls", "step_retries", "linear_solver")
     row = {k: stats.get(k) for k in keys}
-    row["wall_s_per_sim_s"] = wall_s_per_sim_s([s["wall_s"] for s in stats.get("per_step", [])], dt)
+    steps = stats.get("per_step", [])
+    adaptive = "tol" in stats
+    row["wall_s_per_sim_s"] = wall_s_per_sim_s([s["wall_s"] for s in steps],
+                                               [s["dt"] for s in steps] if adaptive else dt)
+    if adaptive:
+        row |= {k: stats.get(k) for k in ADAPTIVE_COLUMNS}
     if stats.get("step_ms_median") and ref_stats.get("step_ms_median"):
         row["speedup"] = ref_stats["step_ms_median"] / stats["step_ms_median"]
     return row

@@ -4,7 +4,10 @@ error estimate, undecidable verdicts, and the accuracy-for-time frontier (`speed
 A ladder runs the full-space solver at dt, dt/2, dt/4, ... (levels k = 0, 1, ...; frames at the same times). Its
 differences d_k = pos_rmse_rel(x_{k-1}, x_k) (fractions of L, over the shared frames) decide when it stops: at the
 first level whose difference is at most `tol` (certified), or at `depth` (uncertified). The truth is the finest
-run; its error is estimated by Richardson from the observed order (`richardson`).
+run; its error is estimated by Richardson from the observed order (`richardson`). A tolerance ladder (`[truth]`
+kind = "tolerance") runs adaptive steps at time.tol divided by TOLERANCE_FACTOR per level instead; its levels
+refine like steps shrinking by `level_ratio` (the local error of an order-p formula is O(h^(p+1)), so its steps
+shrink by TOLERANCE_FACTOR^(1/(p+1)) per level), which Richardson takes in place of 2.
 
 A truth that does not certify over the whole run may still certify over its first part: `certified_horizon` is
 the end of the longest first stretch of frames on which the two finest runs differ by at most `tol` frame by frame.
@@ -23,6 +26,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from frictionbench.analysis.schema import number
+from frictionbench.scenarios.suites import TOLERANCE_FACTOR
 from frictionbench.solvers.integrators import Integrator
 
 #: Lower clamp of the observed order: a ladder whose differences shrink more slowly than 2^-0.25 per halving (or
@@ -46,7 +50,8 @@ class TruthEstimate:
 
     level: index K of the finest run (dt / 2^K); certified: d_K <= tol; err_est: the Richardson estimate of the
     finest run's error [fraction of L] (None with a single run); order: the order p the estimate used;
-    order_observed: log2(d_{K-1} / d_K) before clamping (None with fewer than three levels).
+    order_observed: log_r(d_{K-1} / d_K) before clamping, r the ladder's `level_ratio` (None with fewer than three
+    levels).
     """
 
     level: int
@@ -64,37 +69,46 @@ def ladder_continues(differences: Sequence[float], tol: float, depth: int) -> bo
     return differences[-1] > tol and len(differences) < depth
 
 
-def observed_order(d_coarse: float, d_fine: float) -> float:
-    """p = log2(d_coarse / d_fine) from two successive differences (inf when d_fine is 0, -inf when only
-    d_coarse is)."""
+def level_ratio(kind: str, integrator: Integrator) -> float:
+    """How much a ladder's step shrinks per level [-]: 2 for a step ladder (`[truth]` kind "step"), and for a
+    tolerance ladder TOLERANCE_FACTOR^(1/(p+1)) with p the integrator's order (2 for BDF2, 2.83 for backward
+    Euler): the steps of an adaptive run scale as tol^(1/(p+1))."""
+    return 2.0 if kind == "step" else TOLERANCE_FACTOR ** (1.0 / (integrator.order + 1))
+
+
+def observed_order(d_coarse: float, d_fine: float, ratio: float = 2.0) -> float:
+    """p = log_ratio(d_coarse / d_fine) from two successive differences of a ladder whose step shrinks by `ratio`
+    per level (inf when d_fine is 0, -inf when only d_coarse is)."""
     if d_fine <= 0.0:
         return math.inf if d_coarse > 0.0 else 0.0
     if d_coarse <= 0.0:
         return -math.inf
-    return math.log2(d_coarse / d_fine)
+    return math.log2(d_coarse / d_fine) / math.log2(ratio)
 
 
-def richardson(differences: Sequence[float],
-               integrator: Integrator) -> tuple[float | None, float | None, float | None]:
-    """(err_est, p, p_observed) of the finest run of a ladder with differences d_1..d_K [fraction of L]:
-    err_est = d_K / (2^p - 1), p = log2(d_{K-1} / d_K) clamped to [MIN_ORDER, the integrator's formal `order`] (a
-    larger observed order is pre-asymptotic luck, a smaller one gives the conservative MIN_ORDER); with one
-    difference (two levels) p = TWO_LEVEL_ORDER; with none, nothing is estimated."""
+def richardson(differences: Sequence[float], integrator: Integrator,
+               ratio: float = 2.0) -> tuple[float | None, float | None, float | None]:
+    """(err_est, p, p_observed) of the finest run of a ladder with differences d_1..d_K [fraction of L] whose step
+    shrinks by `ratio` per level (`level_ratio`: 2 for halved steps): err_est = d_K / (ratio^p - 1),
+    p = log_ratio(d_{K-1} / d_K) clamped to [MIN_ORDER, the integrator's formal `order`] (a larger observed order is
+    pre-asymptotic luck, a smaller one gives the conservative MIN_ORDER); with one difference (two levels)
+    p = TWO_LEVEL_ORDER; with none, nothing is estimated."""
     if not differences:
         return None, None, None
     d = float(differences[-1])
     if len(differences) == 1:
         p, observed = min(TWO_LEVEL_ORDER, integrator.order), None
     else:
-        observed = observed_order(float(differences[-2]), d)
+        observed = observed_order(float(differences[-2]), d, ratio)
         p = min(max(observed, MIN_ORDER), float(integrator.order))
-    return d / (2.0 ** p - 1.0), p, observed
+    return d / (ratio ** p - 1.0), p, observed
 
 
-def assess_ladder(differences: Sequence[float], tol: float, integrator: Integrator) -> TruthEstimate:
-    """The truth of a finished ladder: its finest level, whether its last difference met `tol`, and the
-    Richardson estimate (`richardson`)."""
-    est, p, observed = richardson(differences, integrator)
+def assess_ladder(differences: Sequence[float], tol: float, integrator: Integrator,
+                  ratio: float = 2.0) -> TruthEstimate:
+    """The truth of a finished ladder whose step shrinks by `ratio` per level: its finest level, whether its last
+    difference met `tol`, and the Richardson estimate (`richardson`)."""
+    est, p, observed = richardson(differences, integrator, ratio)
     certified = bool(differences) and differences[-1] <= tol
     return TruthEstimate(level=len(differences), certified=certified, err_est=est, order=p, order_observed=observed)
 
@@ -121,12 +135,15 @@ def decidable(limit: float, certified: bool, err_est: float | None, factor: floa
     return limit >= factor * err_est
 
 
-def wall_s_per_sim_s(step_wall_s: Sequence[float], dt: float) -> float | None:
-    """Stepping wall time per simulated second [s/s]: sum of the steps' wall times [s] / (steps x dt [s]); the
-    warm-up step is not among them (`solvers.run`). None without steps."""
-    if not step_wall_s or dt <= 0.0:
+def wall_s_per_sim_s(step_wall_s: Sequence[float], dt: float | Sequence[float]) -> float | None:
+    """Stepping wall time per simulated second [s/s]: sum of the steps' wall times [s] (an adaptive step's includes
+    its rejected attempts) / the simulated time, steps x dt [s] at a fixed step dt, or the sum of the steps' sizes dt
+    (a sequence, one per step: an adaptive run's); the warm-up step is not among them (`solvers.run`). None without
+    steps."""
+    simulated = float(sum(dt)) if isinstance(dt, Sequence) else len(step_wall_s) * dt
+    if not step_wall_s or simulated <= 0.0:
         return None
-    return float(sum(step_wall_s)) / (len(step_wall_s) * dt)
+    return float(sum(step_wall_s)) / simulated
 
 
 def pareto_front(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:

@@ -91,8 +91,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if not args.no_vtu:
         export_vtu_series(traj, out / "vtu")
     write_json_atomic(out / "stats.json", stats)
-    print(f"{scenario.name}: {stats['steps']} steps, {stats['newton_iters_mean']:.2f} Newton iterations/step, "
-          f"{stats['step_ms_median']:.2f} ms/step (median), warm-up {stats['warmup_s']:.2f} s -> {out}")
+    adaptive = (f" (adaptive at tol {stats['tol']:g}: {stats['rejected_steps']} rejected, smallest "
+                f"{stats['dt_min_used']:.3g} s)" if "tol" in stats else "")
+    print(f"{scenario.name}: {stats['steps']} steps{adaptive}, {stats['newton_iters_mean']:.2f} Newton "
+          f"iterations/step, {stats['step_ms_median']:.2f} ms/step (median), warm-up {stats['warmup_s']:.2f} s "
+          f"-> {out}")
     if stats["failed"]:
         print(f"FAILED: {stats['failure']}", file=sys.stderr)
         return 1

@@ -11,7 +11,7 @@ from frictionbench.analysis.metrics import error_over_time
 from frictionbench.bench.gates import check, load_gates
 from frictionbench.bench.store import RunStore, load_run_info
 from frictionbench.reports.html import ScenarioRuns, comparison_section, write_report_html
-from frictionbench.reports.plots import ladder_mask
+from frictionbench.reports.plots import ladder_mask, numeric_column
 from frictionbench.scenarios.suites import load_suite
 from frictionbench.solvers.trajectory import Trajectory
 
@@ -63,10 +63,15 @@ def build_report(out: str | Path, gates_file: str | Path | None = None, max_scen
         against = truth[1] if truth is not None else ref
         compared = ({ref_label: ref} if truth is not None else {}) | others
         errors = {label: error_over_time(against, traj) for label, traj in compared.items()}
+        scenario_rows = results[results["scenario"] == scenario]
+        adaptive = scenario_rows[numeric_column(scenario_rows, "tol").notna() & scenario_rows["run"].notna()]
+        steps = {f"{row['solver']}/{row['variant']}": store.stats(row["run"]).get("per_step", [])
+                 for _, row in adaptive.iterrows() if store.done(row["run"])}
         runs.append(ScenarioRuns(scenario=scenario, reference=ref, others=others, errors=errors,
                                  plane=planes.get(scenario), reference_label=ref_label,
                                  truth=truth[1] if truth is not None else None,
-                                 truth_label=truth[0] if truth is not None else "truth"))
+                                 truth_label=truth[0] if truth is not None else "truth",
+                                 steps={label: records for label, records in steps.items() if records}))
     extra = []
     if baseline is not None:
         from frictionbench.bench.compare import compare_folders

@@ -236,7 +236,8 @@ def truth_config(suite, with_truth: bool = True, overrides: dict | None = None) 
         return None
     spec = (suite.truth or TruthSpec()).with_(**overrides, where="--truth", sep="-") if overrides else suite.truth
     for integrator in (spec.integrator, *spec.ladders):
-        ladder_variant(suite.scenarios[0].scenario, integrator, spec.depth).scenario(suite.scenarios[0].scenario)
+        ladder_variant(suite.scenarios[0].scenario, integrator, spec.depth,
+                       tol=spec.level_tol(spec.depth)).scenario(suite.scenarios[0].scenario)
     return spec
 
 
@@ -252,8 +253,8 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
     for m in suite.scenarios:
         runs.append((m.scenario, m.scenario.mesh))
         if truth is not None:
-            runs.append((ladder_variant(m.scenario, truth.integrator, truth.depth).scenario(m.scenario),
-                         m.scenario.mesh))
+            runs.append((ladder_variant(m.scenario, truth.integrator, truth.depth,
+                                        tol=truth.level_tol(truth.depth)).scenario(m.scenario), m.scenario.mesh))
         for v in variants:
             try:
                 sc = v.scenario(m.scenario)
@@ -263,24 +264,32 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
     check_runs(runs, allow_large=allow_large)
 
 
-def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENCE) -> Variant:
+def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENCE, tol: float | None = None
+                   ) -> Variant:
     """Level k of a truth ladder: the full-space solver at dt / 2^k with `integrator`, a frame every
-    frame_every x 2^k steps (the frames of every level fall on the same times)."""
-    overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k else {}
+    frame_every x 2^k steps (the frames of every level fall on the same times); with `tol` (a tolerance ladder's
+    level, `TruthSpec.level_tol`) the solver with adaptive steps at time.tol = tol instead, dt and frames the
+    scenario's."""
+    overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k and tol is None else {}
     if integrator != sc.time.integrator:
         overrides["time.integrator"] = integrator
-    return Variant(solver, {}, label=ladder_label(integrator, k), overrides=overrides, dt_scale=0.5 ** k)
+    if tol is not None:
+        overrides["time.tol"] = tol
+    return Variant(solver, {}, label=ladder_label(integrator, k, "step" if tol is None else "tolerance"),
+                   overrides=overrides, dt_scale=0.5 ** k if tol is None else 1.0)
 
 
 @dataclass
 class Ladder:
     """The runs of one member's ladder with one integrator, level by level: their tasks, the differences
     d_k = pos_rmse_rel(x_{k-1}, x_k) [fraction of L] between successive levels, and whether a run failed (which
-    ends it: the truth is then the last good level)."""
+    ends it: the truth is then the last good level). `spec` is the suite's truth: a tolerance ladder's levels are
+    adaptive runs at its `TruthSpec.level_tol`."""
 
     member: SuiteMember
     integrator: str
     solver: str = REFERENCE
+    spec: TruthSpec = field(default_factory=TruthSpec)
     tasks: list[Task] = field(default_factory=list)
     differences: list[float] = field(default_factory=list)
     failed: bool = False
@@ -290,7 +299,8 @@ class Ladder:
     def task(self, k: int) -> Task:
         """The task of level k."""
         sc = self.member.scenario
-        return Task(ladder_variant(sc, self.integrator, k, self.solver).scenario(sc), self.solver, {})
+        return Task(ladder_variant(sc, self.integrator, k, self.solver, self.spec.level_tol(k)).scenario(sc),
+                    self.solver, {})
 
     def add(self, task: Task, store: RunStore, previous: Trajectory | None) -> Trajectory | None:
         """Record the finished run of the next level; returns its trajectory (None if it failed)."""
@@ -316,13 +326,15 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
     until `ladder_continues` says stop; then the ladders of `spec.ladders` to the same level as the member's truth.
     Every run is an ordinary run of the store (cached, resumable). Returns scenario -> integrator -> Ladder (the
     truth's integrator first)."""
-    ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference)} for m in suite.scenarios}
+    ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference, spec)}
+               for m in suite.scenarios}
     climbing = [by[spec.integrator] for by in ladders.values()]
     last: dict[int, Trajectory | None] = {}
     k = 0
     while climbing:
         tasks = [ladder.task(k) for ladder in climbing]
-        run_tasks(tasks, store, device, jobs, executor, f"truth ladder, dt/{2 ** k}")
+        level = f"dt/{2 ** k}" if spec.start_tol is None else f"tol {spec.level_tol(k):g}"
+        run_tasks(tasks, store, device, jobs, executor, f"truth ladder, {level}")
         for ladder, task in zip(climbing, tasks):
             last[id(ladder)] = ladder.add(task, store, last.get(id(ladder)))
         climbing = [ladder for ladder in climbing
@@ -332,7 +344,7 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
     for by in ladders.values():
         truth = by[spec.integrator]
         for integrator in spec.ladders:
-            by[integrator] = Ladder(truth.member, integrator, reference)
+            by[integrator] = Ladder(truth.member, integrator, reference, spec)
             others += [(by[integrator], by[integrator].task(k)) for k in range(truth.good_levels)]
     run_tasks([t for _, t in others], store, device, jobs, executor, "frontier ladders")
     previous: dict[int, Trajectory | None] = {}

@@ -60,12 +60,14 @@ class RunStore:
         write_json_atomic(folder / "stats.json", stats)
         return folder
 
+    def stats(self, key: str) -> dict:
+        """The stored stats of run `key` (without loading its trajectory)."""
+        return json.loads((self.folder(key) / "stats.json").read_text())
+
     def load(self, key: str) -> tuple[Trajectory | None, dict]:
         """The stored trajectory (None for a failed run) and stats of run `key`."""
-        folder = self.folder(key)
-        stats = json.loads((folder / "stats.json").read_text())
-        path = folder / "trajectory.npz"
-        return (Trajectory.load(path) if path.is_file() else None), stats
+        path = self.folder(key) / "trajectory.npz"
+        return (Trajectory.load(path) if path.is_file() else None), self.stats(key)
 
 
 def load_run_info(out: str | Path) -> dict:

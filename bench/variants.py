@@ -44,6 +44,9 @@ DT_HALF = Variant("full", {}, label="dt-half", dt_scale=0.5)
 #: the same time step: how much of the reference's time error the integrator alone removes.
 BDF2 = Variant("full", {}, label="bdf2", overrides={"time.integrator": "bdf2"})
 
+#: The local error tolerances [fraction of L] of the `adaptive` set's runs.
+ADAPTIVE_TOLS = (1e-3, 1e-4, 1e-5)
+
 VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "licrom": [Variant("licrom", LICROM, label="r20")],
     "licrom-affine": [Variant("licrom", LICROM_AFFINE, label="affine-r24"),
@@ -64,6 +67,10 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
                    BDF2],
     # any suite with the full-space solver under BDF2 beside its backward-Euler reference
     "bdf2": [BDF2],
+    # the full-space solver under BDF2 with adaptive, error-controlled steps (docs/design.md "Adaptive steps"), at
+    # three local tolerances: points of the accuracy-for-time frontier (not in the default set)
+    "adaptive": [Variant("full", {}, label=f"bdf2-tol{tol:g}", overrides={"time.integrator": "bdf2", "time.tol": tol})
+                 for tol in ADAPTIVE_TOLS],
     # the barrier contact law (same friction potential) beside the penalty law of the reference
     "barrier": [Variant("full", {}, label="barrier", overrides={"contact.law": "barrier"})],
     # hard suite: every reduced solver family and LiCROM's variants, LiCROM+affine under both contact laws (no

@@ -24,7 +24,7 @@ from frictionbench.analysis.table import results_frame, variant_labels
 from frictionbench.reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
 from frictionbench.reports.interactive import page_scripts, plot_div, plotly_version
 from frictionbench.reports.plots import (error_over_time_figure, error_parts_figure, frontier_figure, ladder_figure,
-                           ladder_mask)
+                           ladder_mask, step_size_figure)
 from frictionbench.reports.viewer import DEFAULT_BUDGET, ViewerBudget, viewer_figure
 from frictionbench.scenarios.atomic import write_text_atomic
 from frictionbench.scenarios.model import Plane
@@ -58,8 +58,10 @@ class ScenarioRuns:
     on the reference's mesh; errors: label -> (t (F,) [s], e (F,) [-]), the per-frame error of that run against
     the truth when there is one, else against the reference (`analysis.metrics.error_over_time`); plane: drawn
     in the viewer; reference_label: the reference's label; truth: the scenario's ground-truth run (None: none),
-    truth_label its label. The viewer shows the truth, the reference and, of the others, each solver family's
-    best variant among them (`reports.headline.ranked_variants`; the first three where none is ranked).
+    truth_label its label; steps: label -> the per-step records (`solvers.step_stats.StepStats` as stored) of the
+    scenario's adaptive runs, for the step-size plot (`reports.plots.step_size_figure`; none: no plot). The viewer
+    shows the truth, the reference and, of the others, each solver family's best variant among them
+    (`reports.headline.ranked_variants`; the first three where none is ranked).
     """
 
     scenario: str
@@ -70,6 +72,7 @@ class ScenarioRuns:
     reference_label: str = "reference"
     truth: Trajectory | None = None
     truth_label: str = "truth"
+    steps: Mapping[str, Sequence[Mapping[str, object]]] = field(default_factory=dict)
 
 
 def _cell(value: object) -> str:
@@ -214,12 +217,17 @@ def _error_parts(frame: pd.DataFrame) -> str:
 
 
 def _error_over_time(runs: Sequence[ScenarioRuns]) -> str:
-    """One interactive error-over-time plot per scenario."""
+    """One interactive error-over-time plot per scenario, and below it the step size over time of its adaptive
+    runs where it has any."""
     parts = []
     for n, run in enumerate(runs):
         against = run.truth_label if run.truth is not None else run.reference_label
         fig = error_over_time_figure(run.errors, f"{run.scenario}: error against {against}")
         parts.append(plot_div(fig, f"error-{n}", 340))
+        if run.steps:
+            parts.append(plot_div(step_size_figure(run.steps, f"{run.scenario}: step size of the adaptive runs "
+                                                              "(dips: impacts and contact events)"),
+                                  f"steps-{n}", 320))
     return "\n".join(parts)
 
 

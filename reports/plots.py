@@ -6,7 +6,7 @@ renders a subset of HTML in names and hover texts.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -159,14 +159,43 @@ def error_over_time_figure(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], 
     return {"data": data, "layout": layout}
 
 
+def step_size_figure(records: Mapping[str, Sequence[Mapping[str, object]]], title: str) -> dict[str, object]:
+    """The step size over time of adaptive runs (log y): per label, its per-step records (`solvers.step_stats.
+    StepStats` as stored, each with its accepted step `dt` [s] and the attempts `rejected` before it) drawn as a
+    step line at the steps' end times, and the steps that had rejected attempts as red crosses (hover: how many).
+    Impacts and contact events show as the dips of the step."""
+    data: list[dict[str, object]] = []
+    for n, (label, steps) in enumerate(records.items()):
+        dt = np.array([float(s["dt"]) for s in steps])
+        t = np.cumsum(dt)
+        rejected = np.array([int(s.get("rejected", 0)) for s in steps])
+        color = PALETTE[n % len(PALETTE)]
+        data.append({"type": "scatter", "mode": "lines", "name": text(label), "x": t.tolist(), "y": dt.tolist(),
+                     "line": {"color": color, "width": 1.4, "shape": "vh"}, "legendgroup": text(label),
+                     "hovertemplate": f"{text(label)}<br>t = %{{x:.4g}} s<br>dt = %{{y:.3g}} s<extra></extra>"})
+        hit = rejected > 0
+        if hit.any():
+            data.append({"type": "scatter", "mode": "markers", "name": text(f"{label}: rejected attempts"),
+                         "x": t[hit].tolist(), "y": dt[hit].tolist(), "legendgroup": text(label),
+                         "marker": {"color": "#d62728", "symbol": "x", "size": 7},
+                         "hovertext": [f"{n_rej} rejected before this step" for n_rej in rejected[hit]],
+                         "hoverinfo": "text+x"})
+    layout = _layout(title, "t [s]", "step size dt [s]")
+    layout["xaxis"] = {"title": {"text": "t [s]"}, "gridcolor": "#e4e4e4"}
+    return {"data": data, "layout": layout}
+
+
 def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
-    """The ground-truth ladders: err_truth against the time step (log-log), a curve per integrator and scenario,
-    beside the truth's own error estimate per scenario (a dashed level). None when there are no ladder rows."""
+    """The ground-truth ladders: err_truth against the time step (log-log; a tolerance ladder's against its runs'
+    time.tol, the `tol` column), a curve per integrator and scenario, beside the truth's own error estimate per
+    scenario (a dashed level). None when there are no ladder rows."""
     ladder = ladder_mask(frame)
     if not ladder.any():
         return None
+    tol = numeric_column(frame, "tol")
+    step = numeric_column(frame, "dt").where(tol.isna(), tol)
     f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
-                      "integrator": frame["ladder"].fillna("").astype(str), "dt": numeric_column(frame, "dt"),
+                      "integrator": frame["ladder"].fillna("").astype(str), "dt": step,
                       "y": numeric_column(frame, "err_truth"), "est": numeric_column(frame, "truth_err_est")})[ladder]
     data: list[dict[str, object]] = []
     scenarios = sorted(f["scenario"].astype(str).unique())
@@ -188,8 +217,9 @@ def ladder_figure(frame: pd.DataFrame) -> dict[str, object] | None:
                      "x": [dts.min(), dts.max()], "y": [est.iloc[0]] * 2,
                      "line": {"color": PALETTE[scenarios.index(str(scenario)) % len(PALETTE)], "dash": "longdashdot",
                               "width": 1}, "hoverinfo": "name"})
+    x_title = "dt [s], or time.tol [L] of a tolerance ladder" if tol[ladder].notna().any() else "dt [s]"
     return {"data": data, "layout": _layout("Ground-truth ladders: error against the truth per time step",
-                                            "dt [s]", "err_truth")}
+                                            x_title, "err_truth")}
 
 
 #: The parts of a variant's error against the truth (`analysis.schema`), in the order drawn.

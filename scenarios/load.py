@@ -45,7 +45,11 @@ optional and defaults to the dataclass default unless said otherwise below):
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
     [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
                   integrator = a name of `scenarios.model.integrator_names()` (the integrators of
-                  `solvers.integrators`); default TimeSpec.integrator, backward Euler
+                  `solvers.integrators`); default TimeSpec.integrator, backward Euler;
+                  optional adaptive steps (docs/design.md, "Adaptive steps"): tol > 0 (finite; the local error
+                  allowed per step, a fraction of L; absent: fixed steps of dt), then dt is the first and largest
+                  step, and dt_min (only with tol) in (0, dt] the smallest [s] (default dt / 1024, or
+                  duration / 100,000 where larger: `TimeSpec.min_step`)
     [effects]     gravity, elasticity, contact, friction, damping, viscosity (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
@@ -59,7 +63,8 @@ allowed: the term is then identically zero and a solver builds nothing for it.
 `scenario_to_dict` writes the canonical dict of a scenario (every field explicit, plane normalised, effects
 resolved; the material's viscosity and damping ratio only where given, and the viscosity effect only where the
 material has one of them, so that undamped scenes keep the hashes they had before material damping existed;
-likewise `time.integrator` only where it is not the default, backward Euler);
+likewise `time.integrator` only where it is not the default, backward Euler, and `time.tol` and `time.dt_min`
+only where given);
 `scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a scenario built or
 modified in code. `scenario_hash` hashes what is simulated, not what it is called.
 """
@@ -89,7 +94,7 @@ MATERIAL_KEYS = ("density", "youngs_modulus", "poisson_ratio", "viscosity", "dam
 PLANE_KEYS = ("normal", "offset", "friction", "slope_deg", "downhill")
 CONTACT_KEYS = ("law", "stiffness", "damping", "friction_stiffness", "barrier_distance", "barrier_stiffness")
 INITIAL_KEYS = ("clearance", "rotation", "translation", "velocity", "angular_velocity", "squash")
-TIME_KEYS = ("dt", "duration", "frame_every", "integrator")
+TIME_KEYS = ("dt", "duration", "frame_every", "integrator", "tol", "dt_min")
 EFFECT_KEYS = ("gravity", "elasticity", "contact", "friction", "damping", "viscosity")
 CONTACT_LAWS = ("penalty", "barrier")
 DOWNHILL_AXES = {"x": (1.0, 0.0), "-x": (-1.0, 0.0), "z": (0.0, 1.0), "-z": (0.0, -1.0)}
@@ -142,7 +147,8 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         "plane": plane,
         "contact": _as_dict(s.contact, CONTACT_KEYS) | ({"stiffness": "auto"} if s.contact.stiffness is None else {}),
         "initial": initial,
-        "time": _as_dict(s.time, TIME_KEYS if s.time.integrator != TimeSpec.integrator else TIME_KEYS[:-1]),
+        "time": {k: v for k, v in _as_dict(s.time, TIME_KEYS).items()
+                 if (k != "integrator" or v != TimeSpec.integrator) and (k not in ("tol", "dt_min") or v is not None)},
         "effects": {k: v for k, v in _as_dict(s.effects, EFFECT_KEYS).items()
                     if k != "viscosity" or _damped(s.material)},
     }
@@ -390,7 +396,18 @@ def _time(raw: object) -> TimeSpec:
     integrator = _string(t.get("integrator", d.integrator), "time.integrator")
     if integrator not in integrator_names():
         raise ScenarioError("time.integrator", integrator, f"expected one of {list(integrator_names())}")
-    return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every), integrator=integrator)
+    tol = t.get("tol")
+    if tol is not None:
+        tol = _number(tol, "time.tol", gt=0.0)
+    dt_min = t.get("dt_min")
+    if dt_min is not None:
+        dt_min = _number(dt_min, "time.dt_min", gt=0.0)
+        if tol is None:
+            raise ScenarioError("time.dt_min", dt_min, "only with time.tol (an adaptive run's smallest step)")
+        if dt_min > dt:
+            raise ScenarioError("time.dt_min", dt_min, f"must be <= time.dt = {dt:g} (the largest step)")
+    return TimeSpec(dt=dt, duration=duration, frame_every=int(frame_every), integrator=integrator, tol=tol,
+                    dt_min=dt_min)
 
 
 def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact, material: Material) -> Effects:

@@ -11,6 +11,12 @@ from dataclasses import dataclass, field, replace
 
 Vec3 = tuple[float, float, float]
 
+#: Most time steps one run may take without an override of the resource guard (`scenarios.resources`; a full-space
+#: step costs 1 ms to 1 s on the CPU); an adaptive run's default smallest step keeps it within (`TimeSpec.min_step`).
+MAX_STEPS = 100_000
+#: An adaptive run's default smallest step, as a fraction of time.dt (`TimeSpec.min_step`).
+DT_MIN_FRACTION = 1.0 / 1024.0
+
 #: The names a scenario's `time.integrator` may take, in registration order. The integrators are classes of
 #: `solvers.integrators`, registered by name there (`solvers.integrators.register`), which hands each name down here
 #: (`register_integrator_name`): this bottom layer may not import solvers (pyproject.toml's layer contracts), so the
@@ -123,17 +129,39 @@ class Initial:
 @dataclass(frozen=True)
 class TimeSpec:
     """Time stepping: step dt [s], duration [s], store a frame every `frame_every` steps, and the `integrator` of
-    the implicit solvers (a name of `integrator_names()`)."""
+    the implicit solvers (a name of `integrator_names()`).
+
+    Adaptive steps (docs/design.md, "Adaptive steps"): `tol` [fraction of L] is the local error allowed per step
+    (RMS over the vertices of the estimated position error / L); None (the default) steps by dt throughout. With a
+    tol, dt is the first and the largest step, `dt_min` [s] the smallest (None: `min_step`'s default), and the
+    frames stay at the fixed-step times, every frame_every x dt."""
 
     dt: float = 0.01
     duration: float = 1.0
     frame_every: int = 1
     integrator: str = "backward-euler"
+    tol: float | None = None
+    dt_min: float | None = None
 
     @property
     def n_steps(self) -> int:
-        """Number of steps, round(duration / dt)."""
+        """Number of steps, round(duration / dt) (of a fixed-step run; an adaptive run's frames are those of the
+        fixed-step run)."""
         return int(round(self.duration / self.dt))
+
+    @property
+    def adaptive(self) -> bool:
+        """Whether the step size is error-controlled (a `tol` is given)."""
+        return self.tol is not None
+
+    @property
+    def min_step(self) -> float:
+        """An adaptive run's smallest step [s]: `dt_min`, by default dt x DT_MIN_FRACTION (dt / 1024) or
+        duration / MAX_STEPS where that is larger, so that a run with the default never takes more steps than the
+        resource guard allows (but never above dt)."""
+        if self.dt_min is not None:
+            return self.dt_min
+        return min(self.dt, max(self.dt * DT_MIN_FRACTION, self.duration / MAX_STEPS))
 
 
 @dataclass(frozen=True)

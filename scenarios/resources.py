@@ -13,10 +13,8 @@ import math
 from collections.abc import Iterable
 
 from frictionbench.scenarios.errors import ScenarioError
-from frictionbench.scenarios.model import MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.model import MAX_STEPS, MeshSpec, Scenario, TimeSpec
 
-#: Most time steps one run may take without an override (a full-space step costs 1 ms to 1 s on the CPU).
-MAX_STEPS = 100_000
 #: Most bytes the stored frames of one run may take, in memory and again on disk, without an override.
 MAX_STORED_BYTES = 2 * 2**30
 #: Arrays stored per frame (positions and velocities), each (n, 3) float64.
@@ -24,14 +22,22 @@ STORED_ARRAYS = 2
 OVERRIDE_HINT = "pass --allow-large (or set allow_large = true in the suite's [suite] table) to run it anyway"
 
 
-def step_count(time: TimeSpec) -> float:
-    """Steps of the time loop, round(duration / dt), as a float (no overflow for absurd inputs)."""
-    steps = time.duration / time.dt
+def step_count(time: TimeSpec, step: float | None = None) -> float:
+    """Steps of the time loop, round(duration / dt) (or of another `step` [s]), as a float (no overflow for absurd
+    inputs)."""
+    steps = time.duration / (time.dt if step is None else step)
     return float(round(steps)) if steps < 2.0**53 else steps
 
 
+def most_steps(time: TimeSpec) -> float:
+    """The most steps a run may take: `step_count`, or for an adaptive run (`TimeSpec.adaptive`) the count at its
+    smallest step (`TimeSpec.min_step`), whatever the step-size controller then does."""
+    return step_count(time, time.min_step) if time.adaptive else step_count(time)
+
+
 def stored_frames(time: TimeSpec) -> float:
-    """Frames the time loop stores: the initial state, every `frame_every`-th step and the last step."""
+    """Frames the time loop stores: the initial state, every `frame_every`-th step and the last step (an adaptive
+    run stores the frames of the fixed-step run)."""
     steps = step_count(time)
     kept = math.floor(steps / time.frame_every)
     return kept + 1.0 + (1.0 if kept * time.frame_every < steps else 0.0)
@@ -58,19 +64,24 @@ def _count(x: float) -> str:
 
 
 def check_resources(scenario: Scenario, n_vertices: int | None, *, allow_large: bool = False) -> None:
-    """Raise ScenarioError naming `time.dt`, `time.duration` or `time.frame_every`, with the step count and the
-    estimated size of the stored frames, when a run of `scenario` on a mesh of `n_vertices` vertices exceeds
-    MAX_STEPS or MAX_STORED_BYTES; `allow_large` lifts both bounds. With `n_vertices` None (mesh not loaded yet)
-    only the step count is checked and the size is given per vertex."""
+    """Raise ScenarioError naming `time.dt`, `time.duration`, `time.dt_min` or `time.frame_every`, with the step
+    count and the estimated size of the stored frames, when a run of `scenario` on a mesh of `n_vertices` vertices
+    exceeds MAX_STEPS (an adaptive run: at its smallest step, `most_steps`) or MAX_STORED_BYTES; `allow_large` lifts
+    both bounds. With `n_vertices` None (mesh not loaded yet) only the step count is checked and the size is given
+    per vertex."""
     if allow_large:
         return
     t = scenario.time
-    steps, frames = step_count(t), stored_frames(t)
+    steps, frames = most_steps(t), stored_frames(t)
     size = (f"{_count(frames)} stored frames x {n_vertices} vertices = {format_bytes(stored_bytes(t, n_vertices))}"
             if n_vertices is not None else
             f"{_count(frames)} stored frames = {format_bytes(stored_bytes(t, 1))} per mesh vertex")
     figures = (f"{_count(steps)} steps (time.duration {t.duration:g} s / time.dt {t.dt:g} s), {size} in memory "
                "and on disk")
+    if t.adaptive and t.dt_min is not None and steps > MAX_STEPS >= step_count(t):
+        raise ScenarioError("time.dt_min", t.dt_min,
+                            f"{scenario.name}: up to {_count(steps)} steps (time.duration {t.duration:g} s / "
+                            f"time.dt_min {t.dt_min:g} s); over the bound of {MAX_STEPS} steps; {OVERRIDE_HINT}")
     if steps > MAX_STEPS:
         # name the field that strays further from the defaults (1 s at 0.01 s)
         default = TimeSpec()

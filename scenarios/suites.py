@@ -32,6 +32,10 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     integrator = "bdf2"             # the ladder's time integrator; default "bdf2"
     ladders = ["backward-euler"]    # optional: integrators whose ladders also run (to the truth's level) as
                                     # cost-accuracy curves of the frontier
+    kind = "step"                   # "step" (default): level k runs at dt / 2^k; "tolerance": level k runs adaptive
+    start_tol = 1e-4                # steps (time.tol, docs/design.md "Adaptive steps") with time.tol =
+                                    # start_tol / 8^k (required with and only with kind = "tolerance"; a fraction of
+                                    # L in [1e-12, 0.5]): TOLERANCE_FACTOR
 
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }
@@ -72,6 +76,13 @@ SUITE_KEYS = ("suite", "base", "axis", "split", "extra", "truth")
 #: Bounds of a truth ladder's tolerance [fraction of L] and depth [halvings].
 TRUTH_TOL_RANGE = (1e-6, 0.5)
 TRUTH_DEPTH_RANGE = (1, 12)
+#: The kinds of truth ladder: halved time steps, or adaptive runs at divided tolerances.
+TRUTH_KINDS = ("step", "tolerance")
+#: Bounds of a tolerance ladder's first time.tol [fraction of L].
+TRUTH_START_TOL_RANGE = (1e-12, 0.5)
+#: A tolerance ladder divides time.tol by this from level to level: a local error of order p + 1 = 3 (BDF2) then
+#: shrinks the steps by 8^(1/3) = 2 and the global error by 4 per level, as a halving of dt does.
+TOLERANCE_FACTOR = 8.0
 
 _LABEL_RE = re.compile(NAME_PART)
 
@@ -88,19 +99,27 @@ class SuiteMember:
 @dataclass(frozen=True)
 class TruthSpec:
     """How a suite's ground truths are made (`[truth]` table): the ladder's tolerance `tol` [fraction of L], its
-    `depth` (most halvings of dt), its `integrator`, and the integrators of further `ladders` run for the frontier
-    only."""
+    `depth` (most levels after the first), its `integrator`, the integrators of further `ladders` run for the
+    frontier only, and its `kind`: `step` (level k at dt / 2^k) or `tolerance` (level k adaptive with time.tol =
+    `start_tol` / TOLERANCE_FACTOR^k, `level_tol`; start_tol None for the step kind)."""
 
     tol: float = 0.005
     depth: int = 4
     integrator: str = "bdf2"
     ladders: tuple[str, ...] = ()
+    kind: str = "step"
+    start_tol: float | None = None
+
+    def level_tol(self, k: int) -> float | None:
+        """time.tol [fraction of L] of level k of a tolerance ladder; None for a step ladder."""
+        return None if self.start_tol is None else self.start_tol / TOLERANCE_FACTOR ** k
 
     def with_(self, tol: float | None = None, depth: int | None = None, integrator: str | None = None,
               where: str = "truth", sep: str = ".") -> "TruthSpec":
         """A validated copy with the given fields changed (None keeps a field); errors name `<where><sep><key>`
         (e.g. `--truth-depth` for command-line flags)."""
-        d = {"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders)}
+        d = {"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders),
+             "kind": self.kind} | ({} if self.start_tol is None else {"start_tol": self.start_tol})
         d |= {k: v for k, v in (("tol", tol), ("depth", depth), ("integrator", integrator)) if v is not None}
         return truth_spec(d, where, sep)
 
@@ -192,7 +211,7 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 
 def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
-    t = _table(raw, where, ("tol", "depth", "integrator", "ladders"))
+    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol"))
     d = TruthSpec()
     tol = t.get("tol", d.tol)
     lo, hi = TRUTH_TOL_RANGE
@@ -210,8 +229,23 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     for i, name in enumerate(ladders):
         if name not in names:
             raise ScenarioError(f"{where}{sep}ladders[{i}]", name, f"expected one of {list(names)}")
+    kind = t.get("kind", d.kind)
+    if kind not in TRUTH_KINDS:
+        raise ScenarioError(f"{where}{sep}kind", kind, f"expected one of {list(TRUTH_KINDS)}")
+    start_tol = t.get("start_tol")
+    lo_s, hi_s = TRUTH_START_TOL_RANGE
+    if kind == "tolerance" and start_tol is None:
+        raise ScenarioError(f"{where}{sep}start_tol", start_tol, f"required with {where}{sep}kind = 'tolerance' (the "
+                                                                 "first level's time.tol, a fraction of L)")
+    if kind != "tolerance" and start_tol is not None:
+        raise ScenarioError(f"{where}{sep}start_tol", start_tol, f"only with {where}{sep}kind = 'tolerance'")
+    if start_tol is not None and (isinstance(start_tol, bool) or not isinstance(start_tol, (int, float))
+                                  or not lo_s <= start_tol <= hi_s):
+        raise ScenarioError(f"{where}{sep}start_tol", start_tol,
+                            f"expected a number in [{lo_s:g}, {hi_s:g}] (a fraction of L)")
     return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
-                     ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)))
+                     ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)), kind=kind,
+                     start_tol=None if start_tol is None else float(start_tol))
 
 
 def _expand(d: object) -> tuple[str, str, bool, list[_Draft]]:

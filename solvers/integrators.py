@@ -25,7 +25,17 @@ previous state only where it lies one step h back, so a step that `solvers.simul
 steps after a full one restarts BDF2: the first half step is backward Euler, the second is BDF2 at h/2 on the first,
 and the next full step is backward Euler again (a half step that follows a half step keeps BDF2: its history is one
 half step back). False uses the previous state at any distance, with the variable-step coefficients: what an
-adaptive step size needs.
+adaptive step size needs (`solvers.simulate`, a scenario with `time.tol`).
+
+Each integrator also estimates the local error of a step it took (`Integrator.local_error`, Milne's device): the
+difference between the implicit step's end positions and an explicit predictor through the same history, scaled by
+the two formulas' error constants at the step ratio w (docs/design.md, "Adaptive steps"):
+
+- one-step formula (backward Euler, and BDF2's first step): predictor y^n + h v^n; the error constants of h^2 y^(2)
+  are +1/2 (implicit) and -1/2 (predictor), so the estimate is (y^{n+1} - predictor) / 2, of order p = 1;
+- BDF2: predictor the quadratic through y^{n-1} and y^n with slope v^n at t^n; the error constants of h^3 y^(3) are
+  (1 + w)^2 / (6w (1 + 2w)) (implicit) and -(1 + w) / (6w) (predictor), so the estimate is
+  (1 + w) / (2 + 3w) (y^{n+1} - predictor) (2/5 at w = 1), of order p = 2.
 
 The registry lives here, with the classes; the scenario loader, in the bottom layer that may not import solvers
 (pyproject.toml's layer contracts), validates `time.integrator` against the names `register` hands down to it
@@ -52,6 +62,11 @@ _SAME_STEP = 1e-6
 def same_step(h: float, h_prev: float) -> bool:
     """Whether steps h and h_prev [s] are one size up to the round-off of times summed from steps."""
     return abs(h_prev - h) <= _SAME_STEP * h
+
+
+def step_ratio(h: float, h_prev: float) -> float:
+    """w = h / h_prev [-], exactly 1 where the two steps are one size (`same_step`)."""
+    return 1.0 if same_step(h, h_prev) else h / h_prev
 
 
 @dataclass(frozen=True)
@@ -87,6 +102,21 @@ class Lagged:
 
 #: Backward Euler's coefficients, also every multistep integrator's first step: y_bar = y^n, h_eff = h.
 ONE_STEP = Coefficients(1.0, 0.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class LocalError:
+    """A step's estimated local error: `error` (shape of y, in y's units) and the `order` p of the formula the step
+    used (its local error is O(h^(p+1)): a step-size controller's exponent is 1 / (p + 1))."""
+
+    error: np.ndarray
+    order: int
+
+
+def one_step_error(y_new: np.ndarray, y: np.ndarray, v: np.ndarray, h: float) -> LocalError:
+    """The local error of a one-step (backward-Euler) step of h [s] from (y, v) to y_new: (y_new - y - h v) / 2
+    (the implicit formula's error +h^2 y^(2) / 2 against the explicit Taylor predictor's -h^2 y^(2) / 2), order 1."""
+    return LocalError(0.5 * (y_new - y - h * v), 1)
 
 
 @dataclass(frozen=True)
@@ -127,6 +157,12 @@ class Integrator:
         return Lagged((c.current * y + c.previous * y_prev) / c.denominator,
                       (c.current * v + c.previous * v_prev) / c.denominator, c.beta * h)
 
+    def local_error(self, y_new: np.ndarray, y: np.ndarray, v: np.ndarray, h: float,
+                    previous: tuple[np.ndarray, np.ndarray, float] | None = None) -> LocalError:
+        """The estimated local error of the step of h [s] from (y, v) that ended at y_new, with `previous` as
+        `lagged` takes it (the history the step used); this default is the one-step formula's (`one_step_error`)."""
+        return one_step_error(y_new, y, v, h)
+
 
 #: The integrators by name (`register`).
 INTEGRATORS: dict[str, type[Integrator]] = {}
@@ -139,12 +175,13 @@ def register(cls: type[Integrator]) -> type[Integrator]:
     return cls
 
 
-def get_integrator(name: str) -> Integrator:
-    """The integrator a scenario's `time.integrator = name` asks for (restarting on a change of step size); a
-    ValueError naming the field and the known names for any other."""
+def get_integrator(name: str, variable_step: bool = False) -> Integrator:
+    """The integrator a scenario's `time.integrator = name` asks for: restarting on a change of step size, or with
+    `variable_step` (an adaptive run's) keeping its history with the variable-step coefficients; a ValueError naming
+    the field and the known names for any other."""
     if name not in INTEGRATORS:
         raise ValueError(f"time.integrator = {name!r}: expected one of {list(INTEGRATORS)}")
-    return INTEGRATORS[name]()
+    return INTEGRATORS[name](restart_on_step_change=not variable_step)
 
 
 @register
@@ -170,5 +207,18 @@ class BDF2(Integrator):
         Backward Euler without a previous step."""
         if h_prev is None:
             return ONE_STEP
-        w = 1.0 if same_step(h, h_prev) else h / h_prev
+        w = step_ratio(h, h_prev)
         return Coefficients((1.0 + w) ** 2, -(w * w), 1.0 + 2.0 * w, (1.0 + w) / (1.0 + 2.0 * w))
+
+    def local_error(self, y_new: np.ndarray, y: np.ndarray, v: np.ndarray, h: float,
+                    previous: tuple[np.ndarray, np.ndarray, float] | None = None) -> LocalError:
+        """Milne's estimate (module docstring) with w = h / h_prev (`step_ratio`): the predictor
+        y^n + h v^n + (h / h_prev)^2 (y^{n-1} - y^n + h_prev v^n), the quadratic through y^{n-1} and y^n with slope
+        v^n at t^n, and the estimate (1 + w) / (2 + 3w) (y_new - predictor), order 2. Without `previous` the step
+        was backward Euler: its estimate (`one_step_error`)."""
+        if previous is None:
+            return one_step_error(y_new, y, v, h)
+        y_prev, _, h_prev = previous
+        w = step_ratio(h, h_prev)
+        predictor = y + h * v + (w * w) * (y_prev - y + (h / w) * v)
+        return LocalError((1.0 + w) / (2.0 + 3.0 * w) * (y_new - predictor), 2)

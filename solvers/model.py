@@ -57,7 +57,8 @@ def resolved(scenario: Scenario, L: float) -> Scenario:
 def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
     """Assemble the static model of `scenario` on `mesh` (rest positions as given by the mesh); its scenario is
     `resolved` (automatic settings made numbers) and a material damping ratio is resolved to the viscosity that
-    gives this mesh's first non-rigid mode that ratio (`viscosity_for_damping_ratio`)."""
+    gives this mesh's first non-rigid mode that ratio (`viscosity_for_damping_ratio`). An adaptive scenario
+    (`time.tol`) gets its integrator with the variable-step coefficients (`get_integrator`'s `variable_step`)."""
     scenario = resolved(scenario, float(mesh.bbox_diagonal()))
     X = np.ascontiguousarray(mesh.X, dtype=np.float64)
     tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
@@ -75,7 +76,7 @@ def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
         plane_offset=0.0 if plane is None else float(plane.offset),
         terms=active_terms(scenario), L=float(mesh.bbox_diagonal()), density=float(scenario.material.density),
         friction=0.0 if plane is None else float(plane.friction), contact=scenario.contact,
-        integrator=get_integrator(scenario.time.integrator),
+        integrator=get_integrator(scenario.time.integrator, variable_step=scenario.time.adaptive),
     )
     if not model.has("viscosity"):
         return model

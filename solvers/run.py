@@ -30,7 +30,8 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
     of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]), the material's Kelvin-Voigt
     `viscosity` [Pa s] (0 when undamped; resolved from the scenario's `damping_ratio`, recorded too, where it gave
-    one), the time `integrator`, the solver's `describe()`, `failed` and `failure` (reason) for a run that diverged.
+    one), the time `integrator`, the solver's `describe()`, `failed` and `failure` (reason) for a run that diverged;
+    an adaptive run (`time.tol`) also its `tol` and the step figures of `stats_summary`.
     Raises `Skipped` for a scene the solver declines, or whose integrator it does not implement.
     """
     params = dict(params or {})
@@ -63,6 +64,8 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
         stats.update(failed=True, failure=str(err))
     traj.basis = stepper.basis
     stats["run_s"] = time.perf_counter() - t0
-    stats.update({k: v for k, v in stats_summary(steps).items()})
+    stats.update({k: v for k, v in stats_summary(steps, scenario.time.tol).items()})
+    if scenario.time.adaptive:
+        stats["tol"] = scenario.time.tol
     stats["finite"] = bool(np.isfinite(traj.x).all()) and not stats["failed"]
     return traj, stats
