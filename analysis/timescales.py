@@ -112,9 +112,12 @@ def timescale_table(scenarios: Sequence[Scenario], dts: Callable[[Scenario], Seq
     steps dts(scenario) [s] (e.g. a truth ladder's levels) with integrator(scenario); frame(scenario) gives the
     positions whose contact patch counts (None: none)."""
     cache = cache or SceneTimescales()
+    meshes: dict = {}
     rows = []
     for sc in scenarios:
-        scene = cache.scene(sc, load_mesh(sc.mesh), frame(sc))
+        if sc.mesh not in meshes:
+            meshes[sc.mesh] = load_mesh(sc.mesh)
+        scene = cache.scene(sc, meshes[sc.mesh], frame(sc))
         for level, dt in enumerate(dts(sc)):
             rows.append({"scenario": sc.name, "mesh": sc.mesh.key, "n_vertices": scene.model.n, "level": level,
                          "dt": dt} | scene_columns(scene) | cache.resolution(scene, integrator(sc), dt))

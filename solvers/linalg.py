@@ -19,6 +19,7 @@ inertia on an LDL^T factorisation: PARDISO's symmetric-indefinite mode, else a d
 
 from __future__ import annotations
 
+import functools
 import weakref
 from typing import Protocol
 
@@ -192,6 +193,13 @@ def make_factoriser(kind: str, offsets: np.ndarray, cols: np.ndarray, n: int) ->
     return PardisoFactoriser(offsets, cols, n)
 
 
+@functools.cache
+def _indefinite_solver() -> "pypardiso.PyPardisoSolver":
+    """One PARDISO instance in real-symmetric-indefinite mode, made once (making one searches the file system for
+    MKL's library: seconds), its memory released after each use."""
+    return pypardiso.PyPardisoSolver(mtype=MTYPE_REAL_SYMMETRIC_INDEFINITE)
+
+
 def negative_eigenvalues(A: sp.spmatrix) -> int:
     """The number of negative eigenvalues of the sparse symmetric matrix A (N, N), exactly: by Sylvester's law of
     inertia, the negative pivots of A = L D L^T. PARDISO (real symmetric indefinite, its defaults) reports them in
@@ -203,7 +211,7 @@ def negative_eigenvalues(A: sp.spmatrix) -> int:
         return int(np.count_nonzero(sla.eigvalsh_tridiagonal(np.diag(D).copy(), np.diag(D, 1).copy()) < 0.0))
     upper = sp.triu(A, format="csr")
     upper.sort_indices()
-    solver = pypardiso.PyPardisoSolver(mtype=MTYPE_REAL_SYMMETRIC_INDEFINITE)
+    solver = _indefinite_solver()
     try:
         solver.set_phase(12)  # analysis and numeric factorisation
         solver._call_pardiso(upper, np.zeros((A.shape[0], 1)))  # noqa: SLF001 (pypardiso's phase-level entry)

@@ -216,3 +216,27 @@ def test_every_row_gets_the_scene_time_scales_and_its_step_resolution_and_the_re
     section = page[page.index('<section id="ladders">'):page.index('<section id="error-parts">')]
     assert "<h3>cube</h3>" in section and "<th>share of modes unresolved</th>" in section
     assert "contact, whole body 141 rad/s" in section
+
+
+def test_the_command_prints_a_suites_time_scales_and_each_ladder_levels_resolution(tmp_path, capsys):
+    """`frictionbench timescales`: with --runs, the patch is the stored reference run's last frame (here the body
+    pressed 1 mm into its plane)."""
+    from frictionbench.bench.cli import main
+    from frictionbench.bench.store import RunStore, run_key
+    from frictionbench.scenarios.suites import load_suite
+
+    sc = next(m.scenario for m in load_suite("quick").scenarios if m.scenario.name == "quick/p1_mu0.1")
+    model = build_model(sc, load_mesh(sc.mesh))
+    x = initial_state(model).x - (sc.initial.clearance + 1e-3) * model.plane_normal
+    run = Trajectory(t=np.array([0.0]), x=x[None], X=model.X, tets=model.tets, surface=model.surface)
+    RunStore(tmp_path / "runs").save(run_key(sc, "full", {}, None), run, {})
+    assert main(["timescales", "--suite", "quick", "--only", "quick/p1_mu0.1", "--depth", "1",
+                 "--runs", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    scenes, levels = out.split("\n\n")
+    line = next(row for row in scenes.splitlines() if row.startswith("quick/p1_mu0.1")).split()
+    assert line[1] == "cheese/coarse" and float(line[3]) == pytest.approx(3694, rel=1e-3)  # omega_max [rad/s]
+    assert float(line[5]) > 0.0  # the patch
+    rows = [row.split() for row in levels.splitlines() if row.startswith("cheese/coarse")]
+    assert [(row[1], float(row[2])) for row in rows] == [("0", 0.01), ("1", 0.005)]
+    assert float(rows[0][-1]) == pytest.approx(0.9878, abs=1e-4)  # share of unresolved modes at dt 0.01 (BDF2)
