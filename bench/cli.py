@@ -212,13 +212,12 @@ def cmd_timescales(args: argparse.Namespace) -> int:
     scenes = rows[rows["level"] == 0][["scenario", "mesh", "n_vertices", *SCENE_COLUMNS]]
     print(f"time scales of suite {suite.name} ([rad/s], [s], [m^2]; nan: no such effect, or no run for the patch)")
     print(scenes.rename(columns=lambda c: c.removeprefix("ts_")).to_string(index=False, float_format="%.4g"))
-    levels = rows.groupby(["mesh", "level"], sort=False).agg(
-        dt=("dt", "first"), h_eff=("h_eff", "first"), omega_max_h=("res_omega_max", "first"),
-        omega_1_h=("res_omega_1", "first"), contact_vertex_h=("res_contact_vertex", "max"),
-        contact_h=("res_contact", "max"), friction_h=("res_friction", "max"),
-        unresolved_share=("res_unresolved_share", "first")).reset_index()
-    print(f"\nresolution of each truth-ladder level ({spec.integrator}, dt / 2^level; omega h_eff, the largest over "
-          "the mesh's scenes where they differ; unresolved_share: elastic modes with omega h_eff > 1)")
+    levels = rows.groupby(["mesh", "level", "dt"], sort=False).agg(
+        h_eff=("h_eff", "first"), omega_max_h=("res_omega_max", "max"), omega_1_h=("res_omega_1", "max"),
+        contact_vertex_h=("res_contact_vertex", "max"), contact_h=("res_contact", "max"),
+        friction_h=("res_friction", "max"), unresolved_share=("res_unresolved_share", "max")).reset_index()
+    print(f"\nresolution of each truth-ladder level ({spec.integrator}, dt / 2^level; per mesh and step the largest "
+          "over its scenes (their materials and patches); unresolved_share: elastic modes with omega h_eff > 1)")
     print(levels.to_string(index=False, float_format="%.4g"))
     return 0
 
