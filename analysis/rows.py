@@ -19,6 +19,7 @@ from tqdm import tqdm
 from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
 from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
 from frictionbench.analysis.schema import computed
+from frictionbench.analysis.timescales import SceneTimescales, scene_columns
 from frictionbench.analysis.transfer import transfer_to_mesh
 from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, level_ratio,
                                           wall_s_per_sim_s, with_frontier)
@@ -101,14 +102,21 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     err_time (the full-space run it is compared with, against the truth: the time step's share), pos_rmse_rel
     (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
     basis's share). `refs` are the members' reference runs by scenario name; `runs` gives the stored runs and the
-    variants of each member (the harness's `bench.runner.StoreRuns`)."""
+    variants of each member (the harness's `bench.runner.StoreRuns`). Every row of a scenario whose reference ran
+    gets the scene's time scales on the reference's mesh with the patch of its last frame and its own step's
+    resolution of them (`analysis.timescales`: computed once per mesh, material and step)."""
     rows = []
+    timescales = SceneTimescales()
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
         ref_task = refs[sc.name]
         ref, ref_stats = runs.load(ref_task.key)
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
+        first = len(rows)
+        scene = timescales.scene_of_run(sc, ref) if ref is not None else None
+        if scene is not None:
+            base |= scene_columns(scene)
         truth_traj = truth_early = None
         if ladders and sc.name in ladders:
             columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0,
@@ -178,6 +186,10 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             truth_err = (err_truth(traj, other_mesh) | error_parts(traj, v_ref, other_mesh)
                          if metrics["status"] == "ok" else {})
             rows.append(row | run_timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
+        if scene is not None:  # each run's step against the scene's time scales
+            for row in rows[first:]:
+                if row.get("dt") is not None:
+                    row |= timescales.resolution(scene, row["integrator"], row["dt"])
     return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
 
 

@@ -247,6 +247,30 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
            source="frictionbench.solvers.step_stats.adaptive_summary", placed=False),
     Column("truth_tol", "parameter", unit="L", meaning="a tolerance ladder's truth: its time.tol",
            source="frictionbench.analysis.rows.truth_columns", placed=False),
+    # the scene's time scales (the same on every row of a scenario) and how well the row's step resolves them
+    *(Column(f"ts_{name}", "parameter", unit=unit, meaning=meaning,
+             source="frictionbench.analysis.timescales.scene_columns") for name, unit, meaning in (
+        ("omega_max", "rad/s", "top of the elastic spectrum at rest (K phi = omega^2 M phi, Lanczos)"),
+        ("omega_1", "rad/s", "first non-rigid elastic mode at rest"),
+        ("patch_area", "m^2", "contact patch: area of the contact points touching the plane in the reference's "
+                              "last frame"),
+        ("contact_stiffness", "Pa/m", "the contact law's normal stiffness per area (barrier: at the resting "
+                                      "pressure)"),
+        ("omega_contact", "rad/s", "the whole body bouncing on its patch, sqrt(k A / M)"),
+        ("zeta_contact", "-", "its damping ratio, k_d A / (2 sqrt(k A M))"),
+        ("omega_contact_vertex", "rad/s", "the fastest contact vertex on its own spring, max sqrt(k a_i / m_i)"),
+        ("zeta_contact_vertex", "-", "the most lightly damped contact vertex, min k_d a_i / (2 sqrt(k a_i m_i))"),
+        ("tau_friction", "s", "the friction law's relaxation time of the whole body, M / (k_f A)"),
+        ("tau_friction_vertex", "s", "the fastest contact vertex's, min m_i / (k_f a_i)"))),
+    Column("h_eff", "parameter", unit="s", meaning="the run's effective step (BDF2 2/3 dt, backward Euler dt)",
+           source="frictionbench.analysis.timescales.effective_step"),
+    *(Column(f"res_{name}", "parameter", unit="-", meaning=meaning,
+             source="frictionbench.analysis.timescales.SceneTimescales.resolution") for name, meaning in (
+        ("omega_max", "omega_max h_eff (> 1: the spectrum's top is not resolved)"),
+        ("omega_1", "omega_1 h_eff"), ("contact", "omega_contact h_eff"),
+        ("contact_vertex", "omega_contact_vertex h_eff"), ("friction", "h_eff / tau_friction"),
+        ("friction_vertex", "h_eff / tau_friction_vertex"),
+        ("unresolved_share", "share of the elastic modes with omega h_eff > 1 (exact count, Sylvester)"))),
     *(Column(name, "provenance", unit="text", meaning=meaning, source="frictionbench.analysis.table.provenance")
       for name, meaning in (
         ("commit", "git HEAD of the source tree"), ("commit_dirty", "tracked files differ from HEAD"),

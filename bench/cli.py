@@ -1,4 +1,4 @@
-"""The `frictionbench` command line: list, simulate, train, run, report, gate, compare."""
+"""The `frictionbench` command line: list, simulate, train, run, report, gate, compare, timescales."""
 
 from __future__ import annotations
 
@@ -182,6 +182,49 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_timescales(args: argparse.Namespace) -> int:
+    """Print a suite's scenes' time scales (one line per member) and, per mesh, the resolution of each level of
+    its truth ladder (`analysis.timescales`); with --runs, the whole-body contact patch of each member is its
+    stored reference run's last frame."""
+    from dataclasses import replace
+
+    import pandas as pd
+
+    from frictionbench.analysis.timescales import SCENE_COLUMNS, timescale_table
+    from frictionbench.bench.runner import REFERENCE
+    from frictionbench.bench.store import RunStore, run_key
+    from frictionbench.scenarios.suites import load_suite
+
+    suite = load_suite(args.suite).only(args.only)
+    spec = (suite.truth or TruthSpec()).with_(depth=args.depth, integrator=args.integrator, where="--", sep="")
+    scenarios = [m.scenario if args.resolution is None
+                 else replace(m.scenario, mesh=replace(m.scenario.mesh, resolution=args.resolution))
+                 for m in suite.scenarios]
+    store = RunStore(Path(args.runs) / "runs") if args.runs else None
+
+    def last_frame(sc: Scenario):
+        key = run_key(sc, REFERENCE, {}, None)
+        if store is None or not store.done(key):
+            return None
+        traj = store.load(key)[0]
+        return None if traj is None else traj.x[-1]
+
+    rows = pd.DataFrame(timescale_table(scenarios, lambda sc: [sc.time.dt / 2**k for k in range(spec.depth + 1)],
+                                        lambda sc: spec.integrator, last_frame))
+    pd.set_option("display.width", 250)
+    scenes = rows[rows["level"] == 0][["scenario", "mesh", "n_vertices", *SCENE_COLUMNS]]
+    print(f"time scales of suite {suite.name} ([rad/s], [s], [m^2]; nan: no such effect, or no run for the patch)")
+    print(scenes.rename(columns=lambda c: c.removeprefix("ts_")).to_string(index=False, float_format="%.4g"))
+    levels = rows.groupby(["mesh", "level", "dt"], sort=False).agg(
+        h_eff=("h_eff", "first"), omega_max_h=("res_omega_max", "max"), omega_1_h=("res_omega_1", "max"),
+        contact_vertex_h=("res_contact_vertex", "max"), contact_h=("res_contact", "max"),
+        friction_h=("res_friction", "max"), unresolved_share=("res_unresolved_share", "max")).reset_index()
+    print(f"\nresolution of each truth-ladder level ({spec.integrator}, dt / 2^level; per mesh and step the largest "
+          "over its scenes (their materials and patches); unresolved_share: elastic modes with omega h_eff > 1)")
+    print(levels.to_string(index=False, float_format="%.4g"))
+    return 0
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     """Rebuild report.html from a results folder (with a section comparing it with --baseline, if given)."""
     from frictionbench.bench.compare import CompareError, compare_folders, summary
@@ -326,6 +369,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("dir")
     _add_baseline_args(s)
     s.set_defaults(func=cmd_report)
+
+    s = sub.add_parser("timescales", help="print a suite's time scales and the resolution of its truth ladder")
+    s.add_argument("--suite", required=True)
+    s.add_argument("--only", help="only the members whose names match this shell pattern")
+    s.add_argument("--resolution", help="every member on this mesh resolution instead (coarse, medium, ...)")
+    s.add_argument("--depth", type=int, help="ladder levels 0..depth (default: the suite's [truth])")
+    s.add_argument("--integrator", help="the ladder's integrator (default: the suite's [truth])")
+    s.add_argument("--runs", help="a `run` output folder: each member's contact patch from its stored reference "
+                   "run's last frame (without: no whole-body contact or friction figures)")
+    s.set_defaults(func=cmd_timescales)
 
     s = sub.add_parser("gate", help="check gates.toml against stored results (exit 1 if any fails)")
     s.add_argument("dir")

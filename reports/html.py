@@ -199,7 +199,42 @@ def _ladders(frame: pd.DataFrame) -> str:
         return _note("No ground-truth ladder in this result set.")
     return (_note("Each ladder: the reference solver at halved time steps; err_truth of each level against the "
                   "scenario's truth, with the truth's own error estimate.")
-            + plot_div(figure, "ladders-plot", 420))
+            + plot_div(figure, "ladders-plot", 420) + _ladder_resolution(frame))
+
+
+#: The scene's time scales shown beside its truth: (column, label, unit).
+_SCALES = (("ts_omega_max", "spectrum top omega_max", "rad/s"), ("ts_omega_1", "first mode omega_1", "rad/s"),
+           ("ts_omega_contact", "contact, whole body", "rad/s"), ("ts_zeta_contact", "its damping ratio", ""),
+           ("ts_omega_contact_vertex", "contact, fastest vertex", "rad/s"),
+           ("ts_zeta_contact_vertex", "least vertex damping ratio", ""),
+           ("ts_tau_friction", "friction relaxation, whole body", "s"),
+           ("ts_tau_friction_vertex", "friction relaxation, fastest vertex", "s"))
+#: Each ladder level's resolution of them: column -> heading.
+_RESOLUTION = {"ladder": "ladder", "ladder_level": "level", "dt": "dt [s]", "h_eff": "h_eff [s]",
+               "res_omega_max": "omega_max h_eff", "res_contact": "contact omega h_eff",
+               "res_contact_vertex": "vertex contact omega h_eff", "res_friction": "h_eff / tau_friction",
+               "res_unresolved_share": "share of modes unresolved"}
+
+
+def _ladder_resolution(frame: pd.DataFrame) -> str:
+    """Per scenario with a ladder: the scene's time scales (`analysis.timescales`) and how well each level's step
+    resolves them (omega h_eff > 1: not resolved); '' where the rows have no time scales."""
+    if "ladder_level" not in frame or "res_omega_max" not in frame:
+        return ""
+    ladder = frame[frame["ladder_level"].notna() & frame["res_omega_max"].notna()]
+    if ladder.empty:
+        return ""
+    parts = [_note("The scenes' time scales beside their truths: the elastic spectrum at rest, the contact "
+                   "(the whole body on its patch, and each contact vertex on its own spring) and the friction law's "
+                   "relaxation; per ladder level, omega h_eff of each (h_eff the integrator's effective step; above "
+                   "1 the step does not resolve it) and the share of the elastic modes it does not resolve.")]
+    for scenario, rows in ladder.groupby("scenario", sort=False):
+        first = rows.iloc[0]
+        scales = "; ".join(f"{label} {_cell(first[col])}{' ' + unit if unit else ''}" for col, label, unit in _SCALES
+                           if col in rows and not is_missing(first[col]))
+        table = _columns(rows.sort_values(["ladder", "ladder_level"]), list(_RESOLUTION)).rename(columns=_RESOLUTION)
+        parts += [f"<h3>{html.escape(str(scenario))}</h3>", f'<p class="note">{scales}</p>', _table(table)]
+    return "\n".join(parts)
 
 
 def _error_parts(frame: pd.DataFrame) -> str:

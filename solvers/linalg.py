@@ -12,14 +12,19 @@ A factoriser is made once per mesh (pattern), factorises each Newton iteration's
 
 `make_factoriser(kind, ...)` picks one by name: `pardiso`, `superlu`, or `direct` (PARDISO where it loads, else
 SuperLU). `PARDISO_ERROR` says why PARDISO is unavailable ('' where it loads).
+
+`negative_eigenvalues` counts the negative eigenvalues of a sparse symmetric matrix exactly (Sylvester's law of
+inertia on an LDL^T factorisation: PARDISO's symmetric-indefinite mode, else a dense LDL^T).
 """
 
 from __future__ import annotations
 
+import functools
 import weakref
 from typing import Protocol
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -35,6 +40,8 @@ except (ImportError, OSError) as err:  # not installed (non-x86 platforms), or m
 
 #: PARDISO matrix type: real symmetric positive definite (Cholesky, no pivoting).
 MTYPE_REAL_SPD = 2
+#: PARDISO matrix type: real symmetric indefinite (LDL^T with Bunch-Kaufman pivoting).
+MTYPE_REAL_SYMMETRIC_INDEFINITE = -2
 #: PARDISO's iparm (0-based index: value) set here; every other entry is 0. 0: use these values, not PARDISO's
 #: defaults; 1: nested-dissection ordering (METIS); 7: iterative refinement only where pivots were perturbed, never
 #: in a Cholesky factorisation (the defaults do 2 steps a solve, which quadruples the solve time and changes nothing
@@ -184,3 +191,34 @@ def make_factoriser(kind: str, offsets: np.ndarray, cols: np.ndarray, n: int) ->
     if kind == "superlu" or (kind == "direct" and pypardiso is None):
         return SuperLUFactoriser(offsets, cols, n)
     return PardisoFactoriser(offsets, cols, n)
+
+
+@functools.cache
+def _indefinite_solver() -> "pypardiso.PyPardisoSolver":
+    """One PARDISO instance in real-symmetric-indefinite mode, made once (making one searches the file system for
+    MKL's library: seconds), its memory released after each use."""
+    return pypardiso.PyPardisoSolver(mtype=MTYPE_REAL_SYMMETRIC_INDEFINITE)
+
+
+def negative_eigenvalues(A: sp.spmatrix) -> int:
+    """The number of negative eigenvalues of the sparse symmetric matrix A (N, N), exactly: by Sylvester's law of
+    inertia, the negative pivots of A = L D L^T. PARDISO (real symmetric indefinite, its defaults) reports them in
+    iparm[22] after the factorisation; a pivot it had to perturb (iparm[13] > 0, A singular to working precision)
+    would make the count unreliable, and is an error. Without PARDISO, a dense LDL^T (`scipy.linalg.ldl`; D's
+    1x1 and 2x2 blocks make a symmetric tridiagonal matrix with the same inertia), O(N^3)."""
+    if pypardiso is None:
+        _, D, _ = sla.ldl(A.toarray())
+        return int(np.count_nonzero(sla.eigvalsh_tridiagonal(np.diag(D).copy(), np.diag(D, 1).copy()) < 0.0))
+    upper = sp.triu(A, format="csr")
+    upper.sort_indices()
+    solver = _indefinite_solver()
+    try:
+        solver.set_phase(12)  # analysis and numeric factorisation
+        solver._call_pardiso(upper, np.zeros((A.shape[0], 1)))  # noqa: SLF001 (pypardiso's phase-level entry)
+        negative, perturbed = int(solver.iparm[22]), int(solver.iparm[13])
+    finally:
+        solver.free_memory(everything=True)
+    if perturbed:
+        raise RuntimeError(f"PARDISO perturbed {perturbed} pivots of the ({A.shape[0]} x {A.shape[0]}) matrix: it "
+                           "is singular to working precision, so its inertia is not reliable")
+    return negative

@@ -137,6 +137,13 @@ def element_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, vol: n
     return pulled_back(H9, Dm_inv, vol)
 
 
+def rest_stiffness(model: Model) -> sp.csr_matrix:
+    """The elastic Hessian K (3n, 3n) [N/m] of the body at rest (F = I), unprojected (PSD there: its null space
+    the six rigid motions)."""
+    return element_blocks(model, element_hessians(model.X, model.tets, model.Dm_inv, model.vol, model.mu_snh,
+                                                  model.lam_snh, project=False))
+
+
 def pulled_back(H9: np.ndarray, Dm_inv: np.ndarray, vol: np.ndarray) -> np.ndarray:
     """Per-element Hessians (m, 12, 12) over the tets' vertex positions (vertex-major, 3 a + alpha) of energies
     V_e psi(F_e) whose density Hessians in F are H9 (m, 9, 9) (row-major vec): V_e B_e^T H9_e B_e."""

@@ -24,8 +24,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from frictionbench.solvers.physics.material import (deformation_gradient, element_hessians, nodal_forces, project_psd,
-                                      pulled_back)
+from frictionbench.solvers.physics.material import (deformation_gradient, nodal_forces, project_psd, pulled_back,
+                                                    rest_stiffness)
 from frictionbench.solvers.physics.terms import BodyTerm, StepData, element_blocks, register
 from frictionbench.solvers.scene import Model
 
@@ -91,8 +91,7 @@ def first_mode(model: Model) -> tuple[float, np.ndarray]:
     eigenvectors phi (3n, k) of its eigenspace (k > 1 where the mesh's symmetry makes the mode degenerate), from
     K phi = omega^2 M phi (K the elastic Hessian at rest, M the lumped mass) by shift-invert Lanczos about a
     negative shift, skipping the six rigid modes. Raises ValueError if the body does not have exactly six."""
-    K = element_blocks(model, element_hessians(model.X, model.tets, model.Dm_inv, model.vol, model.mu_snh,
-                                               model.lam_snh, project=False)).tocsc()
+    K = rest_stiffness(model).tocsc()
     M = sp.diags(np.repeat(model.mass, 3)).tocsc()
     scale = model.mu_snh / (model.density * model.L**2)  # [1/s^2], the order of omega_1^2
     k = min(9, 3 * model.n - 1)
