@@ -144,15 +144,18 @@ def contact_energy(x: np.ndarray, area: np.ndarray, plane: Plane, contact: Conta
 
 
 def impact_loss(traj: Trajectory, scene: OutcomeScene, window: float = IMPACT_WINDOW_S) -> float | None:
-    """The fraction of the impact's kinetic energy that the impact dissipates: (E_b - E_a) / K_b [-].
+    """The mechanical energy the impact dissipates as a fraction of the kinetic energy it meets: (E_b - E_a) / K_c
+    [-].
 
-    b is the last frame before the first contact (the first frame where the contact law presses any surface point:
-    penalty, a point below the plane; barrier, one within its activation distance), a the first frame at least
-    `window` [s] after it; E = kinetic + elastic (stable Neo-Hookean) + gravitational + contact energy
-    (`analysis.metrics.energy_terms`, `contact_energy`), K_b the kinetic energy at b. Friction and damping work
-    inside the window count as dissipated; energy still in vibration or in a bounce at a counts as kept. NaN where
-    there is no impact to measure (the body touches at the first frame or never, or the run ends before the
-    window does, or K_b is 0); None without a plane or contact law.
+    c is the first frame where the contact law presses a surface point (penalty: one below the plane; barrier: one
+    within its activation distance), b the frame before it, a the first frame at least `window` [s] after b;
+    E = kinetic + elastic (stable Neo-Hookean) + gravitational + contact energy (`analysis.metrics.energy_terms`,
+    `contact_energy`); K_c = K_b + G_b - G_c, the kinetic energy at c had the body kept falling freely from b (G
+    the gravitational energy): the frames fall at any phase of the last free interval, and K_b alone would miss the
+    energy of the rest of the fall. Friction and damping work inside the window count as dissipated; energy still
+    in vibration or in a bounce at a counts as kept. NaN where there is no impact to measure (the body touches at
+    the first frame or never, or the run ends before the window does, or K_c is not positive); None without a plane
+    or contact law.
     """
     if scene.plane is None or scene.contact is None:
         return None
@@ -165,16 +168,17 @@ def impact_loss(traj: Trajectory, scene: OutcomeScene, window: float = IMPACT_WI
                                c.barrier_distance) > 0.0).any(axis=-1)
     if not pressed.any() or pressed[0]:
         return math.nan
-    b = int(np.argmax(pressed)) - 1
+    first = int(np.argmax(pressed))
+    b = first - 1
     a = int(np.searchsorted(traj.t, traj.t[b] + window * (1.0 - 1e-9)))
     if a >= traj.n_frames:
         return math.nan
-    frames = [b, a]
-    two = Trajectory(t=traj.t[frames], x=traj.x[frames], X=traj.X, tets=traj.tets, surface=traj.surface,
-                     v=vertex_velocities(traj)[frames])
-    terms = energy_terms(two, scene.material, scene.gravity, scene.body_masses(traj))
-    energy = sum(terms.values()) + np.array([contact_energy(x[k], area[points], scene.plane, c) for k in frames])
-    kinetic = float(terms["kinetic"][0])
+    frames = [b, a, first]
+    three = Trajectory(t=traj.t[frames], x=traj.x[frames], X=traj.X, tets=traj.tets, surface=traj.surface,
+                       v=vertex_velocities(traj)[frames])
+    terms = energy_terms(three, scene.material, scene.gravity, scene.body_masses(traj))
+    energy = sum(terms.values())[:2] + np.array([contact_energy(x[k], area[points], scene.plane, c) for k in (b, a)])
+    kinetic = float(terms["kinetic"][0] + terms["gravity"][0] - terms["gravity"][2])
     return float((energy[0] - energy[1]) / kinetic) if kinetic > 0.0 else math.nan
 
 
