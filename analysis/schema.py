@@ -171,8 +171,8 @@ class Outcome:
             Column(self.diff_column, "accuracy", "lower", self.err_unit,
                    f"{self.name}: difference of the truth ladder's two finest levels",
                    f"{source}.ladder_outcome_columns", **tol),
-            Column(self.est_column, "accuracy", "lower", self.err_unit, f"{self.name}: estimate of the truth's own error",
-                   f"{source}.ladder_outcome_columns", **tol),
+            Column(self.est_column, "accuracy", "lower", self.err_unit,
+                   f"{self.name}: estimate of the truth's own error", f"{source}.ladder_outcome_columns", **tol),
             Column(self.certified_column, "accuracy", "true", "flag",
                    f"{self.name}: the truth ladder's two finest levels differ by at most {self.tol:g} {self.err_unit}",
                    f"{source}.ladder_outcome_columns"))
@@ -192,8 +192,9 @@ OUTCOMES: dict[str, Outcome] = {o.name: o for o in (
             f"{_OUT}.time_to_rest", f"{_OUT}.absolute_difference", "s",
             "|rest_time - the truth's| (inf: only one of them comes to rest)", 0.05),
     Outcome("impact_loss", "-", "mechanical energy lost from the frame before the first contact to 0.2 s later, over "
-            "the kinetic energy the impact meets (empty: no impact)", f"{_OUT}.impact_loss", f"{_OUT}.absolute_difference", "-",
-            "|impact_loss - the truth's| (inf: only one of them has an impact)", 0.02),
+            "the kinetic energy the impact meets (empty: no impact)", f"{_OUT}.impact_loss",
+            f"{_OUT}.absolute_difference", "-", "|impact_loss - the truth's| (inf: only one of them has an impact)",
+            0.02),
     Outcome("peak_ke", "J", "largest kinetic energy over the run", f"{_OUT}.peak_kinetic_energy",
             f"{_OUT}.relative_difference", "-", "|peak_ke - the truth's| / the truth's", 0.02),
     Outcome("stick", "flag", "the body ends at rest on the plane", f"{_OUT}.stick_verdict",
