@@ -30,7 +30,7 @@ ArrayLike3 = Sequence[float] | np.ndarray
 METRIC_KEYS: tuple[str, ...] = tuple(c.name for c in COLUMNS.values() if c.source.startswith(f"{__name__}."))
 
 
-def _unit_plane(normal: ArrayLike3, offset: float = 0.0) -> tuple[np.ndarray, float]:
+def unit_plane(normal: ArrayLike3, offset: float = 0.0) -> tuple[np.ndarray, float]:
     """(n / |n|, d / |n|): the plane n . x = d with a unit normal."""
     n = np.asarray(normal, dtype=float)
     s = np.linalg.norm(n)
@@ -139,7 +139,7 @@ def _tangential(v: np.ndarray, n: np.ndarray) -> np.ndarray:
 
 def plane_travel(x: np.ndarray, plane_normal: ArrayLike3, masses: np.ndarray | None = None) -> np.ndarray:
     """s = P (c_last - c_first), P = I - n n^T: centre-of-mass displacement along the plane, (3,) [m]."""
-    n, _ = _unit_plane(plane_normal)
+    n, _ = unit_plane(plane_normal)
     c = center_of_mass(x[[0, -1]], masses)
     return _tangential(c[1] - c[0], n)
 
@@ -170,10 +170,39 @@ def vertex_velocities(traj: Trajectory) -> np.ndarray:
     return np.gradient(traj.x, traj.t, axis=0)
 
 
+#: `stick`'s rule for a body at rest on the plane: the centre's speed along it below max(REST_SPEED_TOL_REL L,
+#: REST_CREEP_TOL x the law's creep speed), and its lowest point within REST_CONTACT_TOL_REL L of the plane.
+REST_SPEED_TOL_REL = 1e-3
+REST_CREEP_TOL = 5.0
+REST_CONTACT_TOL_REL = 1e-2
+
+
+def rest_speed_tol(L: float, creep_speed: float | None = None, speed_tol_rel: float = REST_SPEED_TOL_REL,
+                   creep_tol: float = REST_CREEP_TOL) -> float:
+    """The speed [m/s] below which a body on the plane is at rest (`stick`): max(speed_tol_rel L, creep_tol
+    creep_speed), the creep speed [m/s] counted where given and finite; L [m]."""
+    tol = speed_tol_rel * L
+    if creep_speed is not None and np.isfinite(creep_speed):
+        tol = max(tol, creep_tol * creep_speed)
+    return tol
+
+
+def _plane_speed(v: np.ndarray, n: np.ndarray, masses: np.ndarray | None) -> np.ndarray:
+    """|P v_c|, the centre of mass's speed along the plane with unit normal n: velocities (..., n, 3) -> (...,)
+    [m/s]."""
+    return np.linalg.norm(_tangential(center_of_mass(v, masses), n), axis=-1)
+
+
+def plane_speeds(traj: Trajectory, plane_normal: ArrayLike3, masses: np.ndarray | None = None) -> np.ndarray:
+    """The centre of mass's speed along the plane in every frame, |P v_c,k| (F,) [m/s] (v from
+    `vertex_velocities`, P = I - n n^T)."""
+    return _plane_speed(vertex_velocities(traj), unit_plane(plane_normal)[0], masses)
+
+
 def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
           plane_offset: float | None = None, masses: np.ndarray | None = None, creep_speed: float | None = None,
-          tail_fraction: float = 0.1, speed_tol_rel: float = 1e-3, creep_tol: float = 5.0,
-          contact_tol_rel: float = 1e-2) -> tuple[bool, float]:
+          tail_fraction: float = 0.1, speed_tol_rel: float = REST_SPEED_TOL_REL, creep_tol: float = REST_CREEP_TOL,
+          contact_tol_rel: float = REST_CONTACT_TOL_REL) -> tuple[bool, float]:
     """Is the body at rest on the plane at the end? Returns (verdict, measured speed [m/s]).
 
     speed = mean over the tail frames k of |P v_c,k|, the centre of mass's velocity along the plane
@@ -186,15 +215,11 @@ def stick(traj: Trajectory, plane_normal: ArrayLike3, L: float | None = None, *,
     body still settling at the end of a run is a small multiple of it (measured up to 2.1x in the quick suite),
     while bodies the law cannot hold move at 0.1-10 m/s on the shipped planes (hundreds of times more).
     """
-    n, d = _unit_plane(plane_normal, 0.0 if plane_offset is None else plane_offset)
+    n, d = unit_plane(plane_normal, 0.0 if plane_offset is None else plane_offset)
     L = bbox_diagonal(traj.X) if L is None else L
     tail = _tail(traj.t, tail_fraction)
-    v_c = center_of_mass(vertex_velocities(traj)[tail], masses)
-    speed = float(np.mean(np.linalg.norm(_tangential(v_c, n), axis=-1)))
-    tol = speed_tol_rel * L
-    if creep_speed is not None and np.isfinite(creep_speed):
-        tol = max(tol, creep_tol * creep_speed)
-    at_rest = speed < tol
+    speed = float(np.mean(_plane_speed(vertex_velocities(traj)[tail], n, masses)))
+    at_rest = speed < rest_speed_tol(L, creep_speed, speed_tol_rel, creep_tol)
     if plane_offset is not None:
         at_rest = at_rest and float(np.min(traj.x[-1] @ n - d)) <= contact_tol_rel * L
     return bool(at_rest), speed
@@ -236,7 +261,7 @@ def max_penetration_rel(traj: Trajectory, plane_normal: ArrayLike3, plane_offset
     vertex can only pass the plane while the surface stays above it if the elements between them invert,
     which `inverted_tets` reports.
     """
-    n, d = _unit_plane(plane_normal, plane_offset)
+    n, d = unit_plane(plane_normal, plane_offset)
     points = np.unique(traj.surface) if traj.surface.size else slice(None)  # no surface given: every vertex
     depth = float(d - np.min(traj.x[:, points] @ n))
     return (depth if depth > 0.0 or np.isnan(depth) else 0.0) / bbox_diagonal(traj.X)
@@ -292,14 +317,14 @@ def creep_speed_law(traj: Trajectory, plane: Plane, contact: Contact, material: 
     """
     if contact.stiffness is None:
         raise ValueError("contact.stiffness is 'auto': pass the resolved contact (solvers.model.resolved)")
-    n, d = _unit_plane(plane.normal, plane.offset)
+    n, d = unit_plane(plane.normal, plane.offset)
     mesh = TetMesh(X=traj.X, tets=traj.tets, surface=traj.surface, name="trajectory")
     area = mesh.surface_vertex_areas()
     pts = np.flatnonzero(area > 0.0)
     x = traj.x[_tail(traj.t, tail_fraction)][:, pts]
     fn = lagged_pressure(contact.law, x, np.zeros_like(x), n, d, contact.stiffness, 0.0, contact.barrier_stiffness,
                          contact.barrier_distance)
-    weight = _body_masses(traj, material, None).sum()
+    weight = body_masses(traj, material, None).sum()
     g_t = float(np.linalg.norm(_tangential(np.asarray(gravity, dtype=float), n)))
     return creep_speed(area[pts], fn.mean(axis=0), plane.friction, contact.friction_stiffness, weight * g_t)
 
@@ -309,12 +334,17 @@ def _edge_matrices(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
     return np.stack([x[tets[:, k]] - x[tets[:, 0]] for k in (1, 2, 3)], axis=-1)
 
 
-def _body_masses(traj: Trajectory, material: Material, masses: np.ndarray | None) -> np.ndarray:
+def body_masses(traj: Trajectory, material: Material, masses: np.ndarray | None) -> np.ndarray:
     """Vertex masses (n,) [kg]: the given ones, else the lumped masses of the material's density."""
     if masses is None:
         volumes = np.abs(shape_matrices(traj.X, traj.tets)[1])  # |V_e|: a trajectory's tets may be unoriented
         return lumped_mass(volumes, traj.tets, traj.X.shape[0], material.density)
     return _masses(traj.X.shape[0], masses)
+
+
+def kinetic_energy(v: np.ndarray, masses: np.ndarray) -> np.ndarray:
+    """1/2 sum_i m_i |v_ki|^2 per frame: velocities (F, n, 3) [m/s], masses (n,) [kg] -> (F,) [J]."""
+    return 0.5 * np.einsum("i,kij,kij->k", masses, v, v)
 
 
 def energy_terms(traj: Trajectory, material: Material, gravity: ArrayLike3 = GRAVITY,
@@ -328,9 +358,8 @@ def energy_terms(traj: Trajectory, material: Material, gravity: ArrayLike3 = GRA
     reached in the trajectory, so every term is >= 0 near rest. m defaults to the lumped masses rho V_e / 4.
     Contact energy is not included (penetration is a metric of its own).
     """
-    m = _body_masses(traj, material, masses)
-    v = vertex_velocities(traj)
-    kinetic = 0.5 * np.einsum("i,kij,kij->k", m, v, v)
+    m = body_masses(traj, material, masses)
+    kinetic = kinetic_energy(vertex_velocities(traj), m)
     mu, lam = snh_parameters(material.youngs_modulus, material.poisson_ratio)
     dm_inv, vol = shape_matrices(traj.X, traj.tets)
     psi_rest = float(snh_energy_density(np.eye(3), mu, lam))
@@ -350,7 +379,7 @@ def energy_ratio_max(traj: Trajectory, material: Material, gravity: ArrayLike3 =
     if not finite(traj):
         return float("nan")
     E = sum(energy_terms(traj, material, gravity, masses).values())
-    weight = _body_masses(traj, material, masses).sum() * float(np.linalg.norm(gravity)) * bbox_diagonal(traj.X)
+    weight = body_masses(traj, material, masses).sum() * float(np.linalg.norm(gravity)) * bbox_diagonal(traj.X)
     tiny = 1e-12 * max(float(np.max(np.abs(E))), weight)
     if E[0] <= tiny:
         return 1.0 if float(np.max(E)) <= tiny else float("inf")
@@ -396,7 +425,7 @@ def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, ma
     any trajectory x = X + W q). Metrics without their input are None.
     """
     if masses is None and material is not None:
-        masses = _body_masses(ref, material, None)
+        masses = body_masses(ref, material, None)
     i_ref, _ = align_frames(ref.t, traj.t)
     row: dict[str, float | int | bool | None] = {
         "frames_compared": int(i_ref.size),

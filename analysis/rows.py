@@ -18,11 +18,13 @@ from tqdm import tqdm
 
 from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
 from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
+from frictionbench.analysis.outcomes import ladder_outcome_columns, outcome_cells, outcome_scene, outcome_values
 from frictionbench.analysis.schema import computed
 from frictionbench.analysis.timescales import SceneTimescales, scene_columns
 from frictionbench.analysis.transfer import transfer_to_mesh
 from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, level_ratio,
                                           wall_s_per_sim_s, with_frontier)
+from frictionbench.scenarios.meshes import bbox_diagonal
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import Suite, SuiteMember, TruthSpec
 from frictionbench.solvers.integrators import get_integrator
@@ -101,10 +103,12 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     truth's columns (`truth_columns`) and the frontier's (`with_frontier`), and every variant row its error's parts:
     err_time (the full-space run it is compared with, against the truth: the time step's share), pos_rmse_rel
     (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
-    basis's share). `refs` are the members' reference runs by scenario name; `runs` gives the stored runs and the
-    variants of each member (the harness's `bench.runner.StoreRuns`). Every row of a scenario whose reference ran
-    gets the scene's time scales on the reference's mesh with the patch of its last frame and its own step's
-    resolution of them (`analysis.timescales`: computed once per mesh, material and step)."""
+    basis's share). Every finished run's row also gets its outcome values (`analysis.outcomes`) and, with a truth,
+    their errors against the truth's and each outcome's convergence over the truth's ladder. `refs` are the members'
+    reference runs by scenario name; `runs` gives the stored runs and the variants of each member (the harness's
+    `bench.runner.StoreRuns`). Every row of a scenario whose reference ran gets the scene's time scales on the
+    reference's mesh with the patch of its last frame and its own step's resolution of them (`analysis.timescales`:
+    computed once per mesh, material and step)."""
     rows = []
     timescales = SceneTimescales()
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
@@ -114,10 +118,19 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
         base = {"suite": suite.name, "scenario": sc.name, "split": m.split, "mesh": sc.mesh.key,
                 "mu": sc.plane.friction if sc.plane else None, "law": sc.contact.law, "tags": " ".join(sc.tags)}
         first = len(rows)
-        scene = timescales.scene_of_run(sc, ref) if ref is not None else None
-        if scene is not None:
-            base |= scene_columns(scene)
-        truth_traj = truth_early = None
+        scales = timescales.scene_of_run(sc, ref) if ref is not None else None
+        if scales is not None:
+            base |= scene_columns(scales)
+        scene = outcome_scene(sc, ref_stats.get("contact_stiffness"), None if ref_stats.get("failed") else ref)
+        values: dict[str, dict] = {}  # outcome values by run key: a ladder level is also a row
+
+        def outcomes_of(key: str, traj: Trajectory, values=values, scene=scene) -> dict:
+            """The outcome values of the stored run `key` of the member's scene, computed once."""
+            if key not in values:
+                values[key] = outcome_values(traj, scene)
+            return values[key]
+
+        truth_traj = truth_early = truth_values = None
         if ladders and sc.name in ladders:
             columns, _, truth_task = truth_columns(ladders[sc.name], truth.tol if truth else 0.0,
                                                    truth.kind if truth else "step")
@@ -125,20 +138,46 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             truth_traj = runs.load(truth_task.key)[0] if truth_task else None
             if truth_traj is not None and columns.get("truth_horizon_s") is not None:
                 truth_early = truth_traj.until(columns["truth_horizon_s"])
+            if truth_traj is not None:
+                ladder = next(iter(ladders[sc.name].values()))
+                levels = [outcomes_of(t.key, truth_traj if t is truth_task else runs.load(t.key)[0])
+                          for t in ladder.tasks]
+                base |= ladder_outcome_columns(levels, get_integrator(ladder.integrator),
+                                               bbox_diagonal(truth_traj.X), ladder.failed)
+                truth_values = levels[-1]
 
-        def err_truth(traj, other_mesh: bool = False, truth_traj=truth_traj, truth_early=truth_early) -> dict:
-            if truth_traj is None or traj is None:
+        def on_truth_mesh(traj, other_mesh: bool, truth_traj=truth_traj):
+            """The run on the truth's mesh: carried onto it from another mesh."""
+            return transfer_to_mesh(traj, truth_traj) if other_mesh and truth_traj is not None else traj
+
+        def err_truth(here, truth_traj=truth_traj, truth_early=truth_early) -> dict:
+            """err_truth and err_truth_horizon of a run on the truth's mesh (`on_truth_mesh`)."""
+            if truth_traj is None or here is None:
                 return {}
-            here = transfer_to_mesh(traj, truth_traj) if other_mesh else traj
             return ({"err_truth": pos_rmse_rel(truth_traj, here)}
                     | ({"err_truth_horizon": pos_rmse_rel(truth_early, here)} if truth_early is not None else {}))
+
+        def outcomes(here, key: str | None, task_scene=None, truth_traj=truth_traj, truth_values=truth_values,
+                     scene=scene) -> dict:
+            """The outcome cells of a run on the truth's mesh (`on_truth_mesh`): key names a run of the member's
+            scene (cached); None a variant's run, with its scenario's contact law (`task_scene`, and its resolved
+            stiffness) for when it first touches."""
+            if here is None:
+                return {}
+            L = bbox_diagonal((truth_traj if truth_traj is not None else here).X)
+            if key is None:
+                contact = outcome_scene(*task_scene, None).contact
+                values = outcome_values(here, scene if contact == scene.contact else replace(scene, contact=contact))
+            else:
+                values = outcomes_of(key, here)
+            return outcome_cells(values, truth_values, L)
 
         def error_parts(traj, run_ref, other_mesh: bool, truth_traj=truth_traj) -> dict:
             """err_time: the full-space run this row is compared with, against the truth; err_projection: the
             truth (carried onto the row's mesh) projected onto the row's subspace, where it has one."""
             if truth_traj is None or run_ref is None:
                 return {}
-            parts = {"err_time": err_truth(run_ref, other_mesh)["err_truth"]}
+            parts = {"err_time": err_truth(on_truth_mesh(run_ref, other_mesh))["err_truth"]}
             if traj is not None and traj.basis is not None:
                 truth_here = transfer_to_mesh(truth_traj, traj) if other_mesh else truth_traj
                 parts["err_projection"] = proj_rmse_rel(truth_here, traj.basis)
@@ -147,7 +186,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
         rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,
                             "integrator": sc.time.integrator}
                     | run_timing(ref_stats, ref_stats, sc.time.dt) | run_metrics(ref, ref, sc, ref_stats)
-                    | (err_truth(ref) if not ref_stats.get("failed") else {}))
+                    | (err_truth(ref) | outcomes(ref, ref_task.key) if not ref_stats.get("failed") else {}))
         for integrator, ladder in (ladders or {}).get(sc.name, {}).items():
             for k, task in enumerate(ladder.tasks):
                 traj, stats = runs.load(task.key)
@@ -156,7 +195,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                                     "ladder_level": k, "run": task.key, "dt": task.scenario.time.dt,
                                     "integrator": integrator}
                             | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)
-                            | err_truth(traj))
+                            | err_truth(traj) | outcomes(traj, task.key))
         for v, params in runs.member_variants(m):
             label = v.label or v.solver
             if params is None:
@@ -183,13 +222,15 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                           "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
             metrics = run_metrics(v_ref, traj, task.scenario, stats)
             other_mesh = mesh is not None and not v.transfer
-            truth_err = (err_truth(traj, other_mesh) | error_parts(traj, v_ref, other_mesh)
-                         if metrics["status"] == "ok" else {})
+            here = on_truth_mesh(traj, other_mesh) if metrics["status"] == "ok" else None
+            truth_err = (err_truth(here) | error_parts(traj, v_ref, other_mesh)
+                         | outcomes(here, None, (task.scenario, stats.get("contact_stiffness")))
+                         if here is not None else {})
             rows.append(row | run_timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
-        if scene is not None:  # each run's step against the scene's time scales
+        if scales is not None:  # each run's step against the scene's time scales
             for row in rows[first:]:
                 if row.get("dt") is not None:
-                    row |= timescales.resolution(scene, row["integrator"], row["dt"])
+                    row |= timescales.resolution(scales, row["integrator"], row["dt"])
     return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
 
 

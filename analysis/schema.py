@@ -106,6 +106,108 @@ def _timing(name: str, better: str, unit: str, meaning: str, source: str, **kw) 
     return Column(name, "timing", better, unit, meaning, source, factor=factor, **kw)
 
 
+@dataclass(frozen=True)
+class Outcome:
+    """One outcome metric (docs/design.md, "Outcome metrics"): a quantity of a run judged against the truth's, with
+    its own convergence over the truth's ladder. Declared once in OUTCOMES; its columns follow (`columns`) and
+    `analysis.outcomes` computes them.
+
+    name: the value column; unit, meaning: the value's; value: dotted name of f(trajectory, scene) -> the value
+    (`analysis.outcomes.OutcomeScene`; None where the outcome does not apply, NaN where it is undefined for the
+    run, e.g. no rest); difference: dotted name of f(value, truth's value, L [m]) -> the error [err_unit];
+    err_meaning: the error's; tol: the outcome's tolerance [err_unit]: the truth's ladder certifies it when its two
+    finest levels differ by at most tol, and `compare` calls a change of its error below tol no regression;
+    own_column: False where the value column is already declared (it is not redeclared nor rewritten);
+    discrete: a verdict, whose ladder estimate is its last difference (no order to extrapolate with).
+    """
+
+    name: str
+    unit: str
+    meaning: str
+    value: str
+    difference: str
+    err_unit: str
+    err_meaning: str
+    tol: float
+    own_column: bool = True
+    discrete: bool = False
+
+    @property
+    def err_column(self) -> str:
+        """The run's error against the truth's value."""
+        return f"{self.name}_err_truth"
+
+    @property
+    def truth_column(self) -> str:
+        """The truth's value."""
+        return f"truth_{self.name}"
+
+    @property
+    def diff_column(self) -> str:
+        """The difference between the truth ladder's two finest levels."""
+        return f"truth_{self.name}_diff"
+
+    @property
+    def est_column(self) -> str:
+        """The estimate of the truth's own error in this outcome."""
+        return f"truth_{self.name}_est"
+
+    @property
+    def certified_column(self) -> str:
+        """Whether the truth's two finest levels agree within tol."""
+        return f"truth_{self.name}_certified"
+
+    def columns(self) -> tuple[Column, ...]:
+        """Its results columns: the value (unless own_column is False), the error against the truth, and the truth's
+        value, ladder difference, estimate and certificate."""
+        source = "frictionbench.analysis.outcomes"
+        tol = {"rel": ACCURACY_TOL["rel"], "abs": self.tol}
+        value = Column(self.name, "accuracy", unit=self.unit, meaning=self.meaning, source=self.value)
+        return ((value,) if self.own_column else ()) + (
+            Column(self.err_column, "accuracy", "lower", self.err_unit, f"{self.err_meaning} (tolerance {self.tol:g})",
+                   self.difference, summary=True, **tol),
+            Column(self.truth_column, "accuracy", unit=self.unit, meaning=f"the truth's {self.name}",
+                   source=self.value),
+            Column(self.diff_column, "accuracy", "lower", self.err_unit,
+                   f"{self.name}: difference of the truth ladder's two finest levels",
+                   f"{source}.ladder_outcome_columns", **tol),
+            Column(self.est_column, "accuracy", "lower", self.err_unit,
+                   f"{self.name}: estimate of the truth's own error", f"{source}.ladder_outcome_columns", **tol),
+            Column(self.certified_column, "accuracy", "true", "flag",
+                   f"{self.name}: the truth ladder's two finest levels differ by at most {self.tol:g} {self.err_unit}",
+                   f"{source}.ladder_outcome_columns"))
+
+
+_OUT = "frictionbench.analysis.outcomes"
+#: The outcome metrics, each declared once (docs/design.md, "Outcome metrics").
+OUTCOMES: dict[str, Outcome] = {o.name: o for o in (
+    Outcome("slide", "m", "distance the centre of mass travels along the plane, start to end",
+            f"{_OUT}.slide_distance", f"{_OUT}.length_difference", "L", "|slide - the truth's slide| / L", 0.005),
+    Outcome("end_com", "m", "centre of mass at the end, as 'x y z'", f"{_OUT}.end_com",
+            f"{_OUT}.length_difference", "L", "distance between the run's and the truth's end centres / L", 0.005),
+    Outcome("end_angle", "deg", "rotation angle of the best-fit rigid motion from the rest shape to the last frame",
+            f"{_OUT}.end_rotation", f"{_OUT}.rotation_difference", "deg",
+            "angle of R_truth^T R, the end rotations' difference", 1.0),
+    Outcome("rest_time", "s", "time from which the body stays at rest on the plane (empty: not at rest at the end)",
+            f"{_OUT}.time_to_rest", f"{_OUT}.absolute_difference", "s",
+            "|rest_time - the truth's| (inf: only one of them comes to rest)", 0.05),
+    Outcome("impact_loss", "-", "mechanical energy lost from the frame before the first contact to 0.2 s later, over "
+            "the kinetic energy the impact meets (empty: no impact)", f"{_OUT}.impact_loss",
+            f"{_OUT}.absolute_difference", "-", "|impact_loss - the truth's| (inf: only one of them has an impact)",
+            0.02),
+    Outcome("peak_ke", "J", "largest kinetic energy over the run", f"{_OUT}.peak_kinetic_energy",
+            f"{_OUT}.relative_difference", "-", "|peak_ke - the truth's| / the truth's", 0.02),
+    Outcome("stick", "flag", "the body ends at rest on the plane", f"{_OUT}.stick_verdict",
+            f"{_OUT}.verdict_difference", "count", "1 where the stick verdict differs from the truth's, else 0", 0.0,
+            own_column=False, discrete=True),
+)}
+
+
+def outcome_of(column: str) -> Outcome | None:
+    """The outcome whose error against the truth `column` is (`Outcome.err_column`), None for any other column."""
+    return next((o for o in OUTCOMES.values() if o.err_column == column), None)
+
+
 _ROWS = "frictionbench.analysis.rows.collect_rows"
 _METRICS = "frictionbench.analysis.metrics"
 _STATS = "frictionbench.solvers.run.run_scenario"
@@ -271,6 +373,7 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
         ("contact_vertex", "omega_contact_vertex h_eff"), ("friction", "h_eff / tau_friction"),
         ("friction_vertex", "h_eff / tau_friction_vertex"),
         ("unresolved_share", "share of the elastic modes with omega h_eff > 1 (exact count, Sylvester)"))),
+    *(c for o in OUTCOMES.values() for c in o.columns()),
     *(Column(name, "provenance", unit="text", meaning=meaning, source="frictionbench.analysis.table.provenance")
       for name, meaning in (
         ("commit", "git HEAD of the source tree"), ("commit_dirty", "tracked files differ from HEAD"),

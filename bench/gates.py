@@ -20,7 +20,10 @@ gate marked `against_truth`) whose limit is below 3x the error estimate of the r
 uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
 `frictionbench gate`; so is a gate on `speedup_equal_accuracy` of a row more accurate than its whole ladder, and a
 `min` gate on it whose row is less accurate than the ladder's coarsest run (its number is an upper bound: below the
-limit it fails, at or above it nothing is proven).
+limit it fails, at or above it nothing is proven). A `max` gate on an outcome's error against the truth
+(`analysis.schema.OUTCOMES`, e.g. `slide_err_truth`) is judged against that outcome's own convergence: undecidable
+where the truth's ladder did not certify the outcome (`truth_<name>_certified`) and the limit is below 3x its
+estimate (`truth_<name>_est`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from frictionbench.analysis.schema import flag, is_missing, number, truthy
+from frictionbench.analysis.schema import flag, is_missing, number, outcome_of, truthy
 from frictionbench.analysis.table import variant_labels
 from frictionbench.analysis.truth import AT_MOST, MORE_ACCURATE, decidable
 
@@ -90,18 +93,22 @@ def _passes(value: object, gate: dict) -> bool:
 
 def _undecidable(row: pd.Series, gate: dict) -> bool:
     """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
-    estimate is too large for the limit (`analysis.truth.decidable`), or a gate on the speedup at equal accuracy
+    estimate is too large for the limit (`analysis.truth.decidable`; for an outcome's error, the truth's certificate
+    and estimate of that outcome), or a gate on the speedup at equal accuracy
     of a row more accurate than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on
     it met only by an upper bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
     if gate["metric"] == "speedup_equal_accuracy":
         if is_missing(row.get("speedup_equal_accuracy")):
             return row.get("frontier_note") == MORE_ACCURATE
         return row.get("frontier_note") == AT_MOST and "min" in gate and _passes(row["speedup_equal_accuracy"], gate)
-    if "max" not in gate or not (gate["metric"] in TRUTH_METRICS or gate.get("against_truth")):
+    outcome = outcome_of(gate["metric"])
+    if "max" not in gate or not (gate["metric"] in TRUTH_METRICS or gate.get("against_truth") or outcome):
         return False
-    if "truth_err_est" not in row and "truth_certified" not in row:
+    certified, est = ((outcome.certified_column, outcome.est_column) if outcome
+                      else ("truth_certified", "truth_err_est"))
+    if est not in row and certified not in row:
         return False  # no truth for these results: judged as before
-    return not decidable(float(gate["max"]), truthy(row.get("truth_certified")), number(row.get("truth_err_est")))
+    return not decidable(float(gate["max"]), truthy(row.get(certified)), number(row.get(est)))
 
 
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:

@@ -2,7 +2,8 @@
 sortable, filterable tables; it opens offline (no request: plotly.js and the data are inline).
 
 Sections (with these ids and headings): summary (the headline: per solver family its best variant, the gates as a
-count with the failures), accuracy-vs-time (the frontier), ladders, error-parts, error-over-time, viewer,
+count with the failures), accuracy-vs-time (the frontier), ladders, outcomes (each scenario's truth outcomes and
+their convergence), error-parts, error-over-time, viewer,
 time-convergence, stick-slip, remeshing, stability, gate-verdicts, results, any extra sections, provenance. Every
 text from the results is escaped: HTML-escaped in the page, JSON-escaped for `<script>` in the embedded figures.
 """
@@ -19,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from frictionbench.analysis.derived import remeshing_summary
-from frictionbench.analysis.schema import COLUMNS, flag, is_missing, names, stability_metrics, truthy
+from frictionbench.analysis.schema import COLUMNS, OUTCOMES, flag, is_missing, names, stability_metrics, truthy
 from frictionbench.analysis.table import results_frame, variant_labels
 from frictionbench.reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
 from frictionbench.reports.interactive import page_scripts, plot_div, plotly_version
@@ -235,6 +236,29 @@ def _ladder_resolution(frame: pd.DataFrame) -> str:
         table = _columns(rows.sort_values(["ladder", "ladder_level"]), list(_RESOLUTION)).rename(columns=_RESOLUTION)
         parts += [f"<h3>{html.escape(str(scenario))}</h3>", f'<p class="note">{scales}</p>', _table(table)]
     return "\n".join(parts)
+
+
+def _outcomes(frame: pd.DataFrame) -> str:
+    """Per scenario, each outcome of its truth (`analysis.schema.OUTCOMES`): the truth's value, the difference of
+    its ladder's two finest levels, the estimate of its error and whether it is certified; or why there is none."""
+    table = []
+    for scenario, g in (frame.groupby("scenario", sort=False) if "scenario" in frame else ()):
+        for o in OUTCOMES.values():
+            if o.certified_column not in g or g[o.certified_column].isna().all():
+                continue
+            r = g[g[o.certified_column].notna()].iloc[0]
+            table.append({"scenario": scenario, "outcome": o.name, "unit": o.unit, "truth": r.get(o.truth_column),
+                          "ladder difference": r.get(o.diff_column), "estimate": r.get(o.est_column),
+                          "tolerance": o.tol, "of": o.err_unit, "certified": r[o.certified_column]})
+    if not table:
+        return _note("No outcome convergence in this result set (no ground truth, or no plane).")
+    return (_note("Each outcome of each scenario's truth (docs/design.md, \"Outcome metrics\"): its value, the "
+                  "difference between the truth ladder's two finest levels, the estimate of the truth's own error "
+                  "(Richardson, as for positions; a verdict's is its last difference) and whether the difference "
+                  "meets the outcome's tolerance. Each run's error against these values is a column of the results "
+                  "table (<outcome>_err_truth); a gate on it is undecidable where the outcome is not certified "
+                  "and the limit is below 3x its estimate.")
+            + _table(pd.DataFrame(table), verdicts=["certified"]))
 
 
 def _error_parts(frame: pd.DataFrame) -> str:
@@ -468,6 +492,7 @@ def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], ou
         ("summary", "Summary", _summary(frame, gates)),
         ("accuracy-vs-time", "Accuracy versus time", _frontier(frame)),
         ("ladders", "Ground-truth ladders", _ladders(frame)),
+        ("outcomes", "Outcomes against the truth", _outcomes(frame)),
         ("error-parts", "Where the error comes from", _error_parts(frame)),
         ("error-over-time", "Error over time", _error_over_time(runs) if runs else no_runs),
         ("viewer", "3D viewer", _viewers(runs, frame, viewer) if runs else no_runs),

@@ -207,7 +207,7 @@ def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
     checker = check_html(page)
     assert all(ref.startswith("#") for ref in checker.refs)  # no src, no external link
     assert checker.headings == ["Summary", "Accuracy versus time", "Ground-truth ladders",
-                                "Where the error comes from", "Error over time",
+                                "Outcomes against the truth", "Where the error comes from", "Error over time",
                                 "3D viewer", "Reference time-step convergence", "Stick/slip agreement",
                                 "Remeshing", "Stability", "Gate verdicts", "Results", "Notes", "Provenance"]
     assert page.count(plotly_js()) == 1  # plotly.js inline, once
