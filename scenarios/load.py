@@ -36,7 +36,10 @@ optional and defaults to the dataclass default unless said otherwise below):
     default plane (horizontal through the origin, mu = 0.5), so a scene without ground always says so.
 
     [contact]     law = "penalty" | "barrier", stiffness > 0 or "auto" (default; see Contact), damping >= 0,
-                  friction_stiffness > 0, barrier_distance > 0, barrier_stiffness > 0
+                  friction_stiffness > 0, barrier_distance > 0, barrier_stiffness > 0,
+                  lag = "start" (default) | "fixed-point" (see Contact); instead of damping,
+                  damping_ratio >= 0 [-] (of a contact vertex on its contact spring; resolved to a damping when the
+                  model is built; not with damping)
     [initial]     clearance >= 0 [m], rotation [deg], translation [m], velocity [m/s],
                   angular_velocity [rad/s], squash (per-axis scale, components
                   nonzero, magnitude in [1e-3, 1e3]; a negative component mirrors the body: every tet starts inverted)
@@ -53,7 +56,7 @@ optional and defaults to the dataclass default unless said otherwise below):
     [effects]     gravity, elasticity, contact, friction, damping, viscosity (booleans)
 
 Effects default to what the scene implies: gravity = the gravity vector is non-zero; elasticity = true;
-contact = a plane exists; friction = contact and mu > 0; damping = contact and contact.damping > 0; viscosity =
+contact = a plane exists; friction = contact and mu > 0; damping = contact and a contact damping or damping ratio > 0; viscosity =
 true (the term exists where the material gives a viscosity or a damping ratio). An explicit entry may turn any
 term off; turning on a term the scene cannot have (contact without a plane, friction or damping without contact,
 viscosity without a material viscosity or damping ratio) is an error. `friction = true` with mu = 0 (or
@@ -63,8 +66,8 @@ allowed: the term is then identically zero and a solver builds nothing for it.
 `scenario_to_dict` writes the canonical dict of a scenario (every field explicit, plane normalised, effects
 resolved; the material's viscosity and damping ratio only where given, and the viscosity effect only where the
 material has one of them, so that undamped scenes keep the hashes they had before material damping existed;
-likewise `time.integrator` only where it is not the default, backward Euler, and `time.tol` and `time.dt_min`
-only where given);
+likewise `time.integrator` only where it is not the default, backward Euler, `time.tol`, `time.dt_min` and
+`contact.damping_ratio` only where given, and `contact.lag` only where it is not `start`);
 `scenario_from_dict(scenario_to_dict(s)) == s` for every loaded scenario, so it also validates a scenario built or
 modified in code. `scenario_hash` hashes what is simulated, not what it is called.
 """
@@ -84,7 +87,7 @@ from pathlib import Path
 from typing import Any
 
 from frictionbench.scenarios.errors import ScenarioError, checked_table
-from frictionbench.scenarios.model import (Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
+from frictionbench.scenarios.model import (CONTACT_LAGS, Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
                                            Vec3, integrator_names)
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",
@@ -92,7 +95,8 @@ TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane
 MESH_KEYS = ("name", "resolution", "path", "scale")
 MATERIAL_KEYS = ("density", "youngs_modulus", "poisson_ratio", "viscosity", "damping_ratio")
 PLANE_KEYS = ("normal", "offset", "friction", "slope_deg", "downhill")
-CONTACT_KEYS = ("law", "stiffness", "damping", "friction_stiffness", "barrier_distance", "barrier_stiffness")
+CONTACT_KEYS = ("law", "stiffness", "damping", "friction_stiffness", "barrier_distance", "barrier_stiffness", "lag",
+                "damping_ratio")
 INITIAL_KEYS = ("clearance", "rotation", "translation", "velocity", "angular_velocity", "squash")
 TIME_KEYS = ("dt", "duration", "frame_every", "integrator", "tol", "dt_min")
 EFFECT_KEYS = ("gravity", "elasticity", "contact", "friction", "damping", "viscosity")
@@ -145,7 +149,8 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         "mesh": mesh,
         "material": {k: v for k, v in _as_dict(s.material, MATERIAL_KEYS).items() if v is not None},
         "plane": plane,
-        "contact": _as_dict(s.contact, CONTACT_KEYS) | ({"stiffness": "auto"} if s.contact.stiffness is None else {}),
+        "contact": (_as_dict(s.contact, tuple(k for k in CONTACT_KEYS if _given(s.contact, k)))
+                    | ({"stiffness": "auto"} if s.contact.stiffness is None else {})),
         "initial": initial,
         "time": {k: v for k, v in _as_dict(s.time, TIME_KEYS).items()
                  if (k != "integrator" or v != TimeSpec.integrator) and (k not in ("tol", "dt_min") or v is not None)},
@@ -340,6 +345,15 @@ def _contact(raw: object) -> Contact:
     law = _string(t.get("law", d.law), "contact.law")
     if law not in CONTACT_LAWS:
         raise ScenarioError("contact.law", law, f"expected one of {list(CONTACT_LAWS)}")
+    ratio = t.get("damping_ratio")
+    if ratio is not None:
+        ratio = _number(ratio, "contact.damping_ratio", ge=0.0)
+        if "damping" in t:
+            raise ScenarioError("contact.damping_ratio", ratio,
+                                f"give either contact.damping (here {t['damping']!r}) or contact.damping_ratio, not both")
+    lag = _string(t.get("lag", d.lag), "contact.lag")
+    if lag not in CONTACT_LAGS:
+        raise ScenarioError("contact.lag", lag, f"expected one of {list(CONTACT_LAGS)}")
     return Contact(
         law=law,
         stiffness=_stiffness(t.get("stiffness", "auto")),
@@ -350,7 +364,20 @@ def _contact(raw: object) -> Contact:
                                  gt=0.0),
         barrier_stiffness=_number(t.get("barrier_stiffness", d.barrier_stiffness), "contact.barrier_stiffness",
                                   gt=0.0),
+        lag=lag,
+        damping_ratio=ratio,
     )
+
+
+def _given(contact: Contact, key: str) -> bool:
+    """Whether the canonical dict writes `key` of the [contact] table: always, but `lag` only where it is not the
+    default, and either `damping` or (where given) `damping_ratio` (so that scenes without the two keep the hashes
+    they had before them)."""
+    if key == "lag":
+        return contact.lag != Contact.lag
+    if key in ("damping", "damping_ratio"):
+        return (contact.damping_ratio is not None) == (key == "damping_ratio")
+    return True
 
 
 def _stiffness(value: object) -> float | None:
@@ -418,7 +445,7 @@ def _effects(raw: object, gravity: Vec3, plane: Plane | None, contact: Contact, 
     if has_contact and plane is None:
         raise ScenarioError("effects.contact", True, "there is no plane to touch (plane = false)")
     for key, present in (("friction", plane is not None and plane.friction > 0.0),
-                         ("damping", contact.damping > 0.0)):
+                         ("damping", contact.damping > 0.0 or (contact.damping_ratio or 0.0) > 0.0)):
         if flags.get(key) and not has_contact:
             raise ScenarioError(f"effects.{key}", True, "needs the contact term, which this scene does not have")
         flags.setdefault(key, has_contact and present)

@@ -82,6 +82,10 @@ class Plane:
     friction: float = 0.5
 
 
+#: The values of `Contact.lag`: where a step evaluates what the contact terms lag (`solvers.step.ContactLag`).
+CONTACT_LAGS = ("start", "fixed-point")
+
+
 @dataclass(frozen=True)
 class Contact:
     """Contact law and parameters, all per unit contact area (docs/design.md, "Contact with the plane").
@@ -92,9 +96,16 @@ class Contact:
         k_e = max(E, rho v^2) / (1e-3 L) (`solvers.physics.contact.auto_penalty_stiffness`), so the penetration is
         about 1e-3 L times the strain the contact pressure causes.
     damping: k_d [Pa s/m], normal force per area per m/s of approach speed while penetrating.
+    damping_ratio: zeta [-] of the contact's own oscillation instead of a k_d (at most one of the two): the damping
+        ratio of a contact vertex's lumped mass on its contact spring (the median over the contact vertices of the
+        mesh), resolved to k_d when the model is built (`solvers.physics.contact.damping_for_ratio`); None: k_d as
+        given.
     friction_stiffness: k_f [Pa s/m], tangential force per area per m/s of slip below the Coulomb limit.
     barrier_distance: dhat [m], activation distance of the barrier law.
     barrier_stiffness: kappa [Pa], barrier stiffness per unit area.
+    lag: where a step evaluates what contact lags (friction's normal pressure, the contact-damping gate): `start`
+        (the start of the step, the paper's: first order in contact) or `fixed-point` (lagged iterations to the
+        step's own end state); `solvers.step.ContactLag`.
     """
 
     law: str = "penalty"
@@ -103,6 +114,8 @@ class Contact:
     friction_stiffness: float = 1.0e6
     barrier_distance: float = 1.0e-3
     barrier_stiffness: float = 1.0e4
+    lag: str = "start"
+    damping_ratio: float | None = None
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import numpy as np
 from frictionbench.scenarios.meshes import TetMesh
 from frictionbench.scenarios.model import Scenario
 from frictionbench.solvers.integrators import get_integrator
-from frictionbench.solvers.physics.contact import auto_penalty_stiffness
+from frictionbench.solvers.physics.contact import auto_penalty_stiffness, damping_for_ratio
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_matrices, snh_parameters
 from frictionbench.solvers.physics.viscosity import viscosity_for_damping_ratio
@@ -32,7 +32,8 @@ def active_terms(scenario: Scenario) -> tuple[str, ...]:
         terms.append("contact")
         if eff.friction and plane.friction > 0.0:
             terms.append("friction")
-        if eff.damping and scenario.contact.damping > 0.0 and scenario.contact.law == "penalty":
+        if (eff.damping and (scenario.contact.damping > 0.0 or (scenario.contact.damping_ratio or 0.0) > 0.0)
+                and scenario.contact.law == "penalty"):
             terms.append("damping")
     mat = scenario.material
     if eff.viscosity and ((mat.viscosity or 0.0) > 0.0 or (mat.damping_ratio or 0.0) > 0.0):
@@ -56,7 +57,8 @@ def resolved(scenario: Scenario, L: float) -> Scenario:
 
 def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
     """Assemble the static model of `scenario` on `mesh` (rest positions as given by the mesh); its scenario is
-    `resolved` (automatic settings made numbers) and a material damping ratio is resolved to the viscosity that
+    `resolved` (automatic settings made numbers), a contact damping ratio to the contact damping that gives this
+    mesh's contact vertices that ratio (`damping_for_ratio`), and a material damping ratio to the viscosity that
     gives this mesh's first non-rigid mode that ratio (`viscosity_for_damping_ratio`). An adaptive scenario
     (`time.tol`) gets its integrator with the variable-step coefficients (`get_integrator`'s `variable_step`)."""
     scenario = resolved(scenario, float(mesh.bbox_diagonal()))
@@ -68,6 +70,9 @@ def build_model(scenario: Scenario, mesh: TetMesh) -> Model:
     points = np.flatnonzero(areas > 0.0)
     mu, lam = snh_parameters(scenario.material.youngs_modulus, scenario.material.poisson_ratio)
     plane = scenario.plane
+    if scenario.contact.damping_ratio is not None:
+        kd = damping_for_ratio(scenario.contact.damping_ratio, scenario.contact.stiffness, mass[points], areas[points])
+        scenario = replace(scenario, contact=replace(scenario.contact, damping=kd))
     model = Model(
         scenario=scenario, mesh=mesh, X=X, tets=tets, surface=np.asarray(mesh.surface, dtype=np.int64),
         Dm_inv=Dm_inv, vol=vol, mass=mass, points=points, area=areas[points], mu_snh=mu, lam_snh=lam,

@@ -57,12 +57,18 @@ class NewtonResult:
     stalls: int
     converged: bool
 
-    def step_stats(self, wall_s: float) -> StepStats:
+    def then(self, later: "NewtonResult") -> "NewtonResult":
+        """One result for two solves of a step, this one then `later` (from this one's end): `later`'s point,
+        residual and convergence, the iterations, halvings, linear iterations and stalls of both."""
+        return NewtonResult(later.y, self.iters + later.iters, later.residual, self.halvings + later.halvings,
+                            self.linear_iters + later.linear_iters, self.stalls + later.stalls, later.converged)
+
+    def step_stats(self, wall_s: float, **counters: int) -> StepStats:
         """The step's record (wall time `wall_s` [s]) with the counters `line_search_halvings`, `stalls` and
-        `linear_iters`."""
+        `linear_iters`, and any further `counters`."""
         return StepStats(wall_s=wall_s, iterations=self.iters, converged=self.converged, residual=self.residual,
                          counters={"line_search_halvings": self.halvings, "stalls": self.stalls,
-                                   "linear_iters": self.linear_iters})
+                                   "linear_iters": self.linear_iters} | counters)
 
 
 class NewtonProblem(Protocol):

@@ -28,7 +28,8 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
 
     Returns the trajectory (None if the run diverged before its first frame) and a stats dict: setup_s,
     warmup_s (first step with kernel compilation, on a throw-away state), step_ms_median/p95 and Newton figures
-    of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]), the material's Kelvin-Voigt
+    of the timed run, the resolved contact stiffness (`contact_stiffness` [Pa/m]) and damping (`contact_damping`
+    [Pa s/m], 0 without a damping term), the material's Kelvin-Voigt
     `viscosity` [Pa s] (0 when undamped; resolved from the scenario's `damping_ratio`, recorded too, where it gave
     one), the time `integrator`, the solver's `describe()`, `failed` and `failure` (reason) for a run that diverged;
     an adaptive run (`time.tol`) also its `tol` and the step figures of `stats_summary`.
@@ -53,6 +54,7 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
     stats: dict = {"setup_s": setup_s, "warmup_s": warmup_s, "device": device, "solver": solver, "params": params,
                    "mesh": (mesh or scenario.mesh).key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
                    "terms": list(model.terms), "integrator": integrator, "contact_stiffness": model.contact.stiffness,
+                   "contact_damping": model.contact_damping,
                    "viscosity": model.viscosity, "damping_ratio": model.damping_ratio, "failed": False,
                    "failure": ""}
     stats.update(stepper.describe())

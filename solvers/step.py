@@ -1,17 +1,23 @@
 """One step's incremental potential as a `solvers.newton.NewtonProblem`, shared by the implicit solvers: a backend
 gives the energy, the Newton direction, the step norm and the contact points of its unknowns, and `StepProblem`
 caps every step by the one feasible-step rule of the physics terms (`solvers.physics.terms.max_feasible_step`:
-the barrier law keeps every contact point above the plane; without a capping term a step is never capped)."""
+the barrier law keeps every contact point above the plane; without a capping term a step is never capped), and
+where a step evaluates what the contact terms lag (`ContactLag`, the scene's `contact.lag`) with the one loop of
+lagged solves both solvers run (`solve_lagged`)."""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from frictionbench.solvers.newton import Direction
-from frictionbench.solvers.physics.terms import Term, max_feasible_step, step_capping
+from frictionbench.scenarios.model import CONTACT_LAGS
+from frictionbench.solvers.newton import Direction, NewtonResult
+from frictionbench.solvers.physics.contact import damped_points, signed_distance
+from frictionbench.solvers.physics.terms import Term, lagged_at_start, max_feasible_step, step_capping
 from frictionbench.solvers.scene import Model
 
 
@@ -44,3 +50,95 @@ class StepProblem(ABC):
         if not self.capping:
             return 1.0
         return max_feasible_step(self.capping, self.model, *self.contact_points(y, dy))
+
+
+# ----- where a step evaluates what contact lags --------------------------------------------------------------------
+#: Most re-lagged solves of a `fixed-point` step (the first solve included). Measured: 2-4 where a contact starts
+#: or ends within the step, 1-2 elsewhere; a step that reaches the cap keeps its last solve and counts it in the
+#: step's `lag_unconverged` counter.
+LAG_MAX_SOLVES = 8
+
+
+@dataclass(frozen=True)
+class ContactLag:
+    """Where a step evaluates what the contact terms lag (`Term.begin_step`: friction's normal pressure; the
+    contact-damping gate, the points below the plane), the scene's `contact.lag`:
+
+    - `start` (the paper's, and the default): at the start of the step, x^n and v^n. The lag is then O(h) off the
+      step's end, so contact and friction are first order under any integrator;
+    - `fixed-point`: lagged iterations (IPC's): solve with the lag at the start, re-lag at the solution's end state
+      and solve again from it, until re-lagging no longer moves the solution (the next solve's first Newton step is
+      below tolerance, or the lagged quantities come out bitwise the same, as in free flight). The normal pressure
+      is then the step's own end state's, as an implicit integrator takes it; the damping gate is the points below
+      the plane at the start or at the end (a union, so that the iteration cannot cycle between a point damped and
+      not: a gate taken at the end alone flips a point that the damping itself lifts back above the plane).
+
+    (A third rule, the lag at the history's linear extrapolation to the step's end, was measured and dropped: it
+    extrapolates the contact's unresolved ringing and diverged on a sliding block at dt 0.01-0.0025,
+    docs/figures.md.)
+    """
+
+    mode: str = "start"
+
+    def __post_init__(self) -> None:
+        if self.mode not in CONTACT_LAGS:
+            raise ValueError(f"contact.lag = {self.mode!r}: expected one of {list(CONTACT_LAGS)}")
+
+
+class LaggedStep(Protocol):
+    """What `solve_lagged` needs of a backend's step: set the step's lagged quantities from lag coordinates and
+    velocities (returning them: the normal pressure and the damping gate at the contact points, to compare), run
+    Newton from y0 (None: the backend's own initial guess), and the velocity of end-of-step coordinates."""
+
+    def relag(self, y_lag: np.ndarray, v_lag: np.ndarray) -> tuple[np.ndarray, ...]: ...
+
+    def newton(self, y0: np.ndarray | None) -> NewtonResult: ...
+
+    def velocity(self, y: np.ndarray) -> np.ndarray: ...
+
+
+def lagged_contact(terms: Sequence[Term], model: Model, x: np.ndarray, v: np.ndarray, x_start: np.ndarray
+                   ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """(fn, gate, x_gate) of a step lagged at contact points x (p, 3) [m] moving at v (p, 3) [m/s], from the start
+    positions x_start (p, 3) [m] (x itself for the start lag): the normal pressure (p,) [Pa] at (x, v)
+    (`lagged_at_start`; None without a term that lags it), the contact-damping gate (p,) bool, the points below the
+    plane at the start or at x (`ContactLag`; all False without a plane), and per point whichever of x_start and x
+    lies lower, (p, 3) [m], whose signed distance is negative exactly at the gate (what the terms take as x_lag)."""
+    fn = lagged_at_start(terms, model, x, v)
+    if model.plane_normal is None:
+        return fn, np.zeros(x.shape[0], bool), x
+    lower = signed_distance(x_start, model.plane_normal, model.plane_offset) < signed_distance(
+        x, model.plane_normal, model.plane_offset)
+    x_gate = np.where(lower[:, None], x_start, x)
+    return fn, damped_points(x_gate, model.plane_normal, model.plane_offset), x_gate
+
+
+def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
+                 ) -> tuple[NewtonResult, dict[str, int]]:
+    """One step's Newton solve(s) under `lag` (`ContactLag`) from the start coordinates y and velocities v.
+    Returns the last solve's result with the iterations, halvings, linear
+    iterations and stalls of every solve summed, and (a `fixed-point` step only) the counters `lag_solves` (solves
+    run) and `lag_unconverged` (1 where it stopped at LAG_MAX_SOLVES)."""
+    key = step.relag(y, v)
+    res = step.newton(None)
+    if lag.mode != "fixed-point":
+        return res, {}
+    solves, unconverged = 1, 1
+    while solves < LAG_MAX_SOLVES:
+            new_key = step.relag(res.y, step.velocity(res.y))
+            if all(_same(a, b) for a, b in zip(key, new_key)):
+                unconverged = 0
+                break
+            key = new_key
+            again = step.newton(res.y)
+            res = res.then(again)
+            solves += 1
+            if again.iters == 1 and again.converged:
+                unconverged = 0
+                break
+    return res, {"lag_solves": solves, "lag_unconverged": unconverged}
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Bitwise equality of two lagged arrays (None: none lagged)."""
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))

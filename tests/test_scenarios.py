@@ -248,7 +248,7 @@ def test_hash_is_stable_across_spellings_and_names() -> None:
     ("contact.law", "barrier"), ("contact.stiffness", 2e7), ("contact.damping", 10.0),
     ("initial.clearance", 0.06), ("initial.rotation", [0.0, 0.0, 1.0]), ("initial.velocity", [0.0, 0.0, 1e-3]),
     ("time.dt", 0.005), ("time.duration", 2.0), ("time.frame_every", 2), ("time.integrator", "bdf2"),
-    ("effects.friction", False),
+    ("effects.friction", False), ("contact.lag", "fixed-point"),
     ("gravity", [0.0, -9.8, 0.0]), ("mesh.resolution", "medium"), ("mesh.scale", 2.0),
 ])
 def test_hash_changes_with_what_is_simulated(path: str, value: object) -> None:
@@ -263,6 +263,16 @@ def test_the_default_integrator_keeps_the_hashes_from_before_the_field() -> None
     assert explicit == scenario_from_dict(VALID) and explicit.time.integrator == "backward-euler"
     assert "integrator" not in scenario_to_dict(explicit)["time"]
     assert scenario_to_dict(scenario_from_dict(with_(VALID, "time.integrator", "bdf2")))["time"]["integrator"] == "bdf2"
+
+
+def test_the_default_contact_lag_and_no_damping_ratio_keep_the_hashes_from_before_the_fields() -> None:
+    explicit = scenario_from_dict(with_(VALID, "contact.lag", "start"))
+    assert explicit == scenario_from_dict(VALID) and "lag" not in scenario_to_dict(explicit)["contact"]
+    assert "damping_ratio" not in scenario_to_dict(explicit)["contact"]
+    ratio = scenario_from_dict(with_(without(VALID, "contact.damping"), "contact.damping_ratio", 1.0))
+    assert scenario_to_dict(ratio)["contact"]["damping_ratio"] == 1.0 and "damping" not in scenario_to_dict(ratio)["contact"]
+    assert scenario_from_dict(scenario_to_dict(ratio)) == ratio and ratio.effects.damping
+    assert scenario_hash(ratio) != scenario_hash(scenario_from_dict(VALID))
 
 
 def test_hash_follows_mesh_file_content_not_location(tmp_path: Path) -> None:
@@ -372,6 +382,8 @@ BAD_SCENARIOS: list[tuple[str, object, str]] = [
     ("contact.barrier_distance", 0.0, "contact.barrier_distance"),
     ("contact.barrier_stiffness", -5.0, "contact.barrier_stiffness"),
     ("contact.law", "springs", "contact.law"),
+    ("contact.lag", "implicit", "contact.lag"),
+    ("contact.damping_ratio", 0.3, "contact.damping_ratio"),  # beside contact.damping
     ("initial.clearance", -0.01, "initial.clearance"),
     ("initial.clearance", True, "initial.clearance"),
     ("initial.squash", [1.0, 0.0, 1.0], "initial.squash"),
@@ -626,6 +638,8 @@ BAD_VALUES: dict[str, list[object]] = {
     "contact.friction_stiffness": NOT_A_NUMBER + [0.0],
     "contact.barrier_distance": NOT_A_NUMBER + [0.0],
     "contact.barrier_stiffness": NOT_A_NUMBER + [-1],
+    "contact.lag": ["implicit", 1, None],
+    "contact.damping_ratio": NOT_A_NUMBER + [-0.1],
     "initial.clearance": NOT_A_NUMBER + [-0.01],
     "initial.rotation": NOT_A_VEC3,
     "initial.translation": NOT_A_VEC3,

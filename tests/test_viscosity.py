@@ -46,7 +46,7 @@ def free_body(mesh: TetMesh, material: Material, initial: Initial, dt: float, du
 
 
 def _step(model: Model, x_bar: np.ndarray, h: float = 0.01) -> T.StepData:
-    return T.StepData(x_hat=x_bar, x_prev=x_bar, h=h, x_bar=x_bar, h_eff=h)
+    return T.StepData(x_hat=x_bar, x_lag=x_bar, h=h, x_bar=x_bar, h_eff=h)
 
 
 def _perturbed(model: Model, seed: int, scale: float) -> np.ndarray:

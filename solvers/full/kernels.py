@@ -222,7 +222,7 @@ def inertia_gravity_kernel(
 @wp.kernel
 def penalty_contact_kernel(
     x: wp.array(dtype=wp.vec3d),
-    x_prev: wp.array(dtype=wp.vec3d),
+    x_lag: wp.array(dtype=wp.vec3d),
     x_bar: wp.array(dtype=wp.vec3d),
     points: wp.array(dtype=wp.int32),
     area: wp.array(dtype=f64),
@@ -239,13 +239,13 @@ def penalty_contact_kernel(
 ):
     """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian.
 
-    Damping acts at points that penetrated at the start of the step (x_prev below the plane), with the velocity
+    Damping acts at points that penetrated at the start of the step (x_lag below the plane), with the velocity
     (x - x_bar) / h of the integrator (h its effective step)."""
     p = wp.tid()
     i = points[p]
     c = offset - wp.dot(normal, x[i])
     vn = f64(0.0)
-    if wp.dot(normal, x_prev[i]) < offset:
+    if wp.dot(normal, x_lag[i]) < offset:
         vn = wp.min(f64(0.0), wp.dot(x[i] - x_bar[i], normal) / h)
     if c <= f64(0.0) and vn == f64(0.0):
         return

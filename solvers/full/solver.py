@@ -24,11 +24,12 @@ import warp.sparse as wps
 
 from frictionbench.solvers.full.assembly import ElementRanges, thread_budget
 from frictionbench.solvers.full.terms import LAUNCHERS
+from frictionbench.solvers.integrators import Lagged
 from frictionbench.solvers.linalg import make_factoriser
 from frictionbench.solvers.model import Model, State
-from frictionbench.solvers.newton import Direction, LineSearch, minimise
-from frictionbench.solvers.physics.terms import StepData, lagged_at_start, terms_of
-from frictionbench.solvers.step import StepProblem
+from frictionbench.solvers.newton import Direction, LineSearch, NewtonResult, minimise
+from frictionbench.solvers.physics.terms import StepData, terms_of
+from frictionbench.solvers.step import ContactLag, StepProblem, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
 from frictionbench.solvers.warp_runtime import init_warp
 
@@ -83,7 +84,7 @@ class BlockPattern:
 class FullSpaceSolver:
     """Newton on the incremental potential of the model's integrator, kernels on `device` (`cpu` or `cuda`).
 
-    Per step it holds the integrator's positions in warp arrays x_hat (the inertial target), x_prev (x^n) and x_bar
+    Per step it holds the integrator's positions in warp arrays x_hat (the inertial target), x_lag (x^n) and x_bar
     (`solvers.integrators`); the terms' launchers (`solvers.full.terms`) hold what else they need of the step."""
 
     name = "full"
@@ -99,6 +100,7 @@ class FullSpaceSolver:
         if linear not in ("direct", "pardiso", "superlu", "cg"):
             raise ValueError(f"solver.linear = {linear!r}: expected 'auto', 'direct', 'pardiso', 'superlu' or 'cg'")
         self.integrator = model.integrator
+        self.contact_lag = ContactLag(model.contact.lag)
         d = self.device
         self.pattern = BlockPattern(model.tets, model.n)
         self.terms = terms_of(model)
@@ -120,7 +122,7 @@ class FullSpaceSolver:
         self.x = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_trial = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_hat = wp.zeros(model.n, dtype=wp.vec3d, device=d)
-        self.x_prev = wp.zeros(model.n, dtype=wp.vec3d, device=d)
+        self.x_lag = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.x_bar = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.grad = wp.zeros(model.n, dtype=wp.vec3d, device=d)
         self.values = wp.zeros(self.pattern.nnzb, dtype=wp.mat33d, device=d)
@@ -176,38 +178,70 @@ class FullSpaceSolver:
 
     # ----- one time step --------------------------------------------------------------------------------
     def begin(self, step: StepData) -> None:
-        """Take a step's constants: its positions x_hat, x_prev and x_bar (n, 3) [m] into the solver's arrays, then
+        """Take a step's constants: its positions x_hat, x_lag and x_bar (n, 3) [m] into the solver's arrays, then
         each term's (`solvers.full.terms.Launcher.begin_step`)."""
         self.x_hat.assign(step.x_hat)
-        self.x_prev.assign(step.x_prev)
+        self.x_lag.assign(step.x_lag)
         self.x_bar.assign(step.x_bar)
         for launcher in self.launchers:
             launcher.begin_step(step)
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """Advance state_in by dt into state_out (the model's integrator, with the history it takes from
-        state_in.previous, `Integrator.previous`); returns the step's statistics."""
+        state_in.previous, `Integrator.previous`; the contact lag of the scene, `solvers.step.solve_lagged`);
+        returns the step's statistics."""
         t0 = time.perf_counter()
         s, m = self.settings, self.model
         prev = self.integrator.previous(state_in, dt)
-        lag = self.integrator.lagged(state_in.x, state_in.v, dt,
-                                     None if prev is None else (prev.x, prev.v, state_in.t - prev.t))
-        h = lag.h_eff
-        fn = lagged_at_start(self.terms, m, state_in.x[m.points], state_in.v[m.points])
-        self.begin(StepData(lag.y_tilde, state_in.x, dt, fn, x_bar=lag.y_bar, h_eff=h))
-        problem = _StepProblem(self, h)
-        x = lag.y_tilde.copy()
-        if problem.capping:
-            reach = (lag.y_bar - state_in.x) + h * lag.v_bar  # x_hat - x^n (h v^n exactly for backward Euler)
-            x = state_in.x.copy() + reach * problem.max_step(state_in.x, reach)
-        res = minimise(problem, x, s.tol * m.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
+        history = None if prev is None else (prev.x, prev.v, state_in.t - prev.t)
+        lag = self.integrator.lagged(state_in.x, state_in.v, dt, history)
+        step = _LaggedStep(self, lag, state_in.x, dt)
+        res, counters = solve_lagged(step, self.contact_lag, state_in.x, state_in.v)
         x = res.y
         self.x.assign(x)
         state_out.x = x
         state_out.v = lag.velocity(x)
         state_out.t = state_in.t + dt
         state_out.previous = state_in.without_history()
-        return res.step_stats(time.perf_counter() - t0)
+        return res.step_stats(time.perf_counter() - t0, **counters)
+
+
+@dataclass
+class _LaggedStep:
+    """One step of dt [s] of a `FullSpaceSolver` for `solvers.step.solve_lagged`: the integrator's constants
+    `lag`, the start positions x_start (n, 3) [m]."""
+
+    solver: FullSpaceSolver
+    lag: Lagged
+    x_start: np.ndarray
+    dt: float
+
+    def relag(self, x_lag: np.ndarray, v_lag: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        """Begin the step with its lagged quantities at positions x_lag and velocities v_lag (n, 3)
+        (`lagged_contact`)."""
+        sv, m, lag = self.solver, self.solver.model, self.lag
+        p = m.points
+        fn, gate, x_gate = lagged_contact(sv.terms, m, x_lag[p], v_lag[p], self.x_start[p])
+        if x_lag is not self.x_start:  # a re-lag: the gate's positions at the contact points
+            x_lag = x_lag.copy()
+            x_lag[p] = x_gate
+        sv.begin(StepData(lag.y_tilde, x_lag, self.dt, fn, x_bar=lag.y_bar, h_eff=lag.h_eff))
+        return fn, gate
+
+    def newton(self, x0: np.ndarray | None) -> NewtonResult:
+        """Newton from x0, or (None) from x_hat, shortened by the feasible-step rule where a term caps steps."""
+        sv, lag, s = self.solver, self.lag, self.solver.settings
+        problem = _StepProblem(sv, lag.h_eff)
+        if x0 is None:
+            x0 = lag.y_tilde.copy()
+            if problem.capping:
+                reach = (lag.y_bar - self.x_start) + lag.h_eff * lag.v_bar  # x_hat - x^n (h v^n for backward Euler)
+                x0 = self.x_start.copy() + reach * problem.max_step(self.x_start, reach)
+        return minimise(problem, x0, s.tol * sv.model.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
+
+    def velocity(self, x: np.ndarray) -> np.ndarray:
+        """The end-of-step velocities of positions x (n, 3) [m/s]."""
+        return self.lag.velocity(x)
 
 
 class _StepProblem(StepProblem):

@@ -39,7 +39,7 @@ def static_equilibrium(solver: FullSpaceSolver, fixed: np.ndarray, tol: float = 
     """Equilibrium positions (n, 3) [m] starting from the rest mesh, vertices where `fixed` (n,) bool is True
     held at rest; stops when |dx|_inf < tol * L. Returns (x, Newton iterations)."""
     m = solver.model
-    solver.x_prev.assign(m.X)
+    solver.x_lag.assign(m.X)
     solver.x_bar.assign(m.X)
     res = minimise(_StaticProblem(solver, np.repeat(~fixed, 3)), m.X.copy(), tol * m.L, max_iter)
     if not res.converged:

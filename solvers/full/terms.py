@@ -4,7 +4,7 @@
 A launcher adds its term at positions x into the solver's buffers (mode 0: the energy into `energy_buf`; mode 1:
 the gradient into `grad` and the Hessian's 3x3 blocks into `values`) and keeps what it needs across a step in its
 own buffers, filled by `begin_step` from the step's constants (`StepData`): friction's lagged normal pressure,
-viscosity's Green strain at x_bar. The solver's arrays x_hat, x_prev and x_bar hold the step's positions.
+viscosity's Green strain at x_bar. The solver's arrays x_hat, x_lag and x_bar hold the step's positions.
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ class _Penalty(Launcher):
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
         s, m = self.solver, self.solver.model
         wp.launch(K.penalty_contact_kernel, m.points.size, device=s.device, inputs=[
-            x, s.x_prev, s.x_bar, s.points, s.area, s.normal, m.plane_offset, self.term.ke(m), self.term.kd(m), h,
+            x, s.x_lag, s.x_bar, s.points, s.area, s.normal, m.plane_offset, self.term.ke(m), self.term.kd(m), h,
             s.diag, s.grad, s.values, s.energy_buf, mode])
 
 

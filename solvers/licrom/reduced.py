@@ -57,8 +57,8 @@ from frictionbench.solvers.model import Model, State
 from frictionbench.solvers.newton import Direction, LineSearch, NewtonResult, minimise
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_gradients
-from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, lagged_at_start, terms_of
-from frictionbench.solvers.step import StepProblem
+from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, terms_of
+from frictionbench.solvers.step import ContactLag, StepProblem, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
@@ -188,8 +188,9 @@ def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.nda
 @dataclass
 class ReducedStep:
     """Per-step constants: dt h [s] and the integrator's effective step h_eff [s], q^n, q_bar and the inertial
-    target q_hat = q_bar + h_eff qdot_bar (r,), the contact points at the start x_prev (p, 3) [m] and at q_bar, x_bar
-    (p, 3) [m], and the lagged normal pressure fn (p,) [Pa] (None without friction). Backward Euler: h_eff = h,
+    target q_hat = q_bar + h_eff qdot_bar (r,), the contact points where the step lags contact x_lag (p, 3) [m] (the
+    start of the step by default, `solvers.step.ContactLag`) and at q_bar, x_bar (p, 3) [m], the lagged normal
+    pressure fn (p,) [Pa] (None without friction) and contact-damping gate (p,) bool there. Backward Euler: h_eff = h,
     q_bar = q^n. The dissipative terms' velocity is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the points)."""
 
     h: float
@@ -197,9 +198,10 @@ class ReducedStep:
     q_prev: np.ndarray
     q_bar: np.ndarray
     q_hat: np.ndarray
-    x_prev: np.ndarray
+    x_lag: np.ndarray
     x_bar: np.ndarray
     fn: np.ndarray | None
+    gate: np.ndarray | None = None
 
 
 @dataclass
@@ -265,6 +267,7 @@ class ReducedSolver:
         if name is not None:
             self.name = name
         self.integrator = model.integrator
+        self.contact_lag = ContactLag(model.contact.lag)
         self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
         self.terms = terms_of(model)
         missing = [t.name for t in self.terms if not isinstance(t, (BodyTerm, PointTerm))]
@@ -293,7 +296,7 @@ class ReducedSolver:
         x = rm.point_positions(q)
         E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
         for term in self.point_terms:
-            e, gp, Hp = term.at_points(m, x, st.x_prev, st.x_bar, rm.area, st.fn, st.h_eff, order)
+            e, gp, Hp = term.at_points(m, x, st.x_lag, st.x_bar, rm.area, st.fn, st.h_eff, order)
             E += e
             if order >= 1:
                 g += gp
@@ -330,18 +333,22 @@ class ReducedSolver:
         return g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
-    def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None) -> ReducedStep:
+    def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None,
+               lag_at: tuple[np.ndarray, np.ndarray] | None = None) -> ReducedStep:
         """Per-step constants of the model's integrator, with `previous` the latent state before (the history
-        `Integrator.previous` picked; None: none); what the terms lag from the start of the step at the contact points
-        (`Term.begin_step`: friction's normal pressure)."""
+        `Integrator.previous` picked; None: none); what the terms lag (`Term.begin_step`: friction's normal pressure;
+        the contact-damping gate) at the contact points of the latent coordinates and rates `lag_at` = (q, qdot)
+        (None: the start of the step, `contact.lag = "start"`)."""
         m, rm = self.model, self.reduced
         lag = self.integrator.lagged(latent.q, latent.qdot, h, None if previous is None else
                                      (previous.q, previous.qdot, latent.t - previous.t))
-        x_prev = rm.point_positions(latent.q)
-        x_bar = x_prev if lag.y_bar is latent.q else rm.point_positions(lag.y_bar)  # backward Euler: q_bar = q^n
-        v = (rm.Wp.reshape(-1, rm.r) @ latent.qdot).reshape(-1, 3)
-        fn = lagged_at_start(self.terms, m, x_prev, v)
-        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, x_prev, x_bar, fn)
+        q_lag, qdot_lag = (latent.q, latent.qdot) if lag_at is None else lag_at
+        x_start = rm.point_positions(latent.q)
+        x_lag = x_start if q_lag is latent.q else rm.point_positions(q_lag)
+        x_bar = x_start if lag.y_bar is latent.q else rm.point_positions(lag.y_bar)  # backward Euler: q_bar = q^n
+        v = (rm.Wp.reshape(-1, rm.r) @ qdot_lag).reshape(-1, 3)
+        fn, gate, x_gate = lagged_contact(self.terms, m, x_lag, v, x_start)
+        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, x_gate, x_bar, fn, gate)
 
     def _velocity_norm(self, dq: np.ndarray, h: float) -> float:
         """|W dq|_inf / h over all mesh vertices [m/s]."""
@@ -352,11 +359,11 @@ class ReducedSolver:
         """q_hat, shortened by the step's feasible-step rule (the barrier law: no contact point crosses the plane)."""
         return st.q_prev + problem.max_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
-    def _newton(self, st: ReducedStep) -> NewtonResult:
-        """Minimise E by the shared Newton loop (`solvers.newton`)."""
+    def _newton(self, st: ReducedStep, q0: np.ndarray | None = None) -> NewtonResult:
+        """Minimise E by the shared Newton loop (`solvers.newton`) from q0 (None: `_initial_guess`)."""
         problem = _StepProblem(self, st)
-        return minimise(problem, self._initial_guess(st, problem), self.tol * self.model.L, self.max_iter,
-                        LineSearch(self.armijo, self.max_halvings))
+        return minimise(problem, self._initial_guess(st, problem) if q0 is None else q0, self.tol * self.model.L,
+                        self.max_iter, LineSearch(self.armijo, self.max_halvings))
 
     def _sample_gradient_rhs(self, q: np.ndarray, st: ReducedStep) -> np.ndarray:
         """sum_i W_i^T g_i over the sample points: g_i the full-space gradient of E at the decoded points [N]."""
@@ -371,10 +378,11 @@ class ReducedSolver:
             rhs += rm.Wp.reshape(-1, rm.r).T @ self._point_terms(q, st, 1)[1].ravel()
         return rhs
 
-    def _projected_gradient(self, st: ReducedStep) -> NewtonResult:
-        """The paper's scheme (no line search: halvings, linear iterations and stalls are 0)."""
+    def _projected_gradient(self, st: ReducedStep, q0: np.ndarray | None = None) -> NewtonResult:
+        """The paper's scheme (no line search: halvings, linear iterations and stalls are 0) from q0 (None:
+        `_initial_guess`)."""
         problem = _StepProblem(self, st)
-        q = self._initial_guess(st, problem)
+        q = self._initial_guess(st, problem) if q0 is None else q0
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
         for it in range(1, self.max_iter + 1):
@@ -408,15 +416,40 @@ class ReducedSolver:
             state_in = self.project(state_in)
         latent = ReducedState(state_in.q, state_in.qdot, state_in.t)
         prev = self.integrator.previous(state_in, dt)
-        st = self._begin(latent, dt, None if prev is None or prev.q is None else
-                         ReducedState(prev.q, prev.qdot, prev.t))
-        solve = self._newton if self.scheme == "newton" else self._projected_gradient
-        res = solve(st)
+        previous = None if prev is None or prev.q is None else ReducedState(prev.q, prev.qdot, prev.t)
+        step = _LaggedStep(self, latent, dt, previous)
+        res, counters = solve_lagged(step, self.contact_lag, latent.q, latent.qdot)
         q = res.y
-        out = self.decode(ReducedState(q, (q - st.q_bar) / st.h_eff, latent.t + dt))
+        out = self.decode(ReducedState(q, step.velocity(q), latent.t + dt))
         state_out.x, state_out.v, state_out.t, state_out.q, state_out.qdot = out.x, out.v, out.t, out.q, out.qdot
         state_out.previous = state_in.without_history()
-        return res.step_stats(time.perf_counter() - t0)
+        return res.step_stats(time.perf_counter() - t0, **counters)
+
+
+@dataclass
+class _LaggedStep:
+    """One step of dt [s] of a `ReducedSolver` from `latent` (with the history `previous`) for
+    `solvers.step.solve_lagged`; `st` the step's constants at the current lag."""
+
+    solver: ReducedSolver
+    latent: ReducedState
+    dt: float
+    previous: ReducedState | None
+    st: ReducedStep | None = None
+
+    def relag(self, q_lag: np.ndarray, qdot_lag: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        """The step's constants with the lag at latent coordinates q_lag and rates qdot_lag (r,)."""
+        self.st = self.solver._begin(self.latent, self.dt, self.previous, (q_lag, qdot_lag))
+        return self.st.fn, self.st.gate
+
+    def newton(self, q0: np.ndarray | None) -> NewtonResult:
+        """The solver's scheme from q0 (None: its initial guess)."""
+        sv = self.solver
+        return (sv._newton if sv.scheme == "newton" else sv._projected_gradient)(self.st, q0)
+
+    def velocity(self, q: np.ndarray) -> np.ndarray:
+        """The latent rate (q - q_bar) / h_eff (r,) of end-of-step coordinates q."""
+        return (q - self.st.q_bar) / self.st.h_eff
 
 
 class _StepProblem(StepProblem):

@@ -41,7 +41,7 @@ class BodyEvaluation(ABC):
 
 class ReferenceEvaluation(BodyEvaluation):
     """Any body term from its numpy reference (`Term.energy`, `gradient`, `hessian`) at the decoded positions
-    x = X + W q, with the step's constants decoded likewise (x_hat, x_prev and x_bar from q_hat, q^n and q_bar):
+    x = X + W q, with the step's constants decoded likewise (x_hat, x_lag and x_bar from q_hat, q^n and q_bar):
     E(x), W^T g and W^T H W, and at the projected-gradient scheme's sample vertices the full gradient's rows there.
     Exact, but slow: every call decodes q and evaluates the term over the full mesh (and the Hessian's product costs
     O(nnz(H) r + n r^2)); a dedicated `BodyEvaluation` in `EVALUATIONS` (as the built-in terms have) makes it fast."""

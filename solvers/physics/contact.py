@@ -36,42 +36,50 @@ def auto_penalty_stiffness(youngs_modulus: float, density: float, speed: float, 
     return max(youngs_modulus, density * speed**2) / (layer * L)
 
 
+def damping_for_ratio(zeta: float, ke: float, mass: np.ndarray, area: np.ndarray) -> float:
+    """k_d [Pa s/m] that gives a contact vertex's oscillation the damping ratio zeta [-]: a vertex of lumped mass m
+    [kg] and area weight a [m^2] on the plane is a mass on a spring k_e a [N/m] with a dashpot k_d a [N s/m], so
+    zeta = k_d a / (2 sqrt(k_e a m)) and k_d = 2 zeta sqrt(k_e m / a), with m / a the median over the contact
+    vertices (mass (p,), area (p,) > 0) and k_e [Pa/m] the penalty stiffness."""
+    return 2.0 * zeta * float(np.sqrt(ke * np.median(mass / area)))
+
+
 def signed_distance(x: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
     """phi(x) = n . x - d, shape (p,) [m]."""
     return x @ normal - offset
 
 
-def damped_points(x_prev, normal, offset) -> np.ndarray:
+def damped_points(x_lag, normal, offset) -> np.ndarray:
     """Points whose contact damping is active during the step: penetrating at its start, (p,) bool."""
-    return signed_distance(x_prev, normal, offset) < 0
+    return signed_distance(x_lag, normal, offset) < 0
 
 
-def _approach(x, x_prev, x_bar, normal, offset, h) -> np.ndarray:
-    """min(0, v.n) with v = (x - x_bar) / h (x_bar None: x_prev) at the damped points, 0 elsewhere, (p,) [m/s]."""
-    x_bar = x_prev if x_bar is None else x_bar
-    return np.minimum(0.0, (x - x_bar) @ normal / h) * damped_points(x_prev, normal, offset)
+def _approach(x, x_lag, x_bar, normal, offset, h) -> np.ndarray:
+    """min(0, v.n) with v = (x - x_bar) / h (x_bar None: x_lag) at the damped points, 0 elsewhere, (p,) [m/s]."""
+    x_bar = x_lag if x_bar is None else x_bar
+    return np.minimum(0.0, (x - x_bar) @ normal / h) * damped_points(x_lag, normal, offset)
 
 
-def penalty_energy(x, x_prev, area, normal, offset, ke, kd, h, x_bar=None) -> float:
+def penalty_energy(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> float:
     """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [damped]), v = (x - x_bar) / h: h is the
-    integrator's effective step and x_bar its lagged positions (None: x_prev, backward Euler)."""
+    integrator's effective step and x_bar its lagged positions (None: x_lag, backward Euler)."""
     c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = _approach(x, x_prev, x_bar, normal, offset, h)
+    vn = _approach(x, x_lag, x_bar, normal, offset, h)
     return float(area @ (0.5 * ke * c**2 + 0.5 * h * kd * vn**2))
 
 
-def penalty_gradient(x, x_prev, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
+def penalty_gradient(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
     """Gradient of `penalty_energy`: A (-k_e c + k_d min(0, v.n) [damped]) n, (p, 3)."""
     c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = _approach(x, x_prev, x_bar, normal, offset, h)
+    vn = _approach(x, x_lag, x_bar, normal, offset, h)
     return (area * (-ke * c + kd * vn))[:, None] * normal[None, :]
 
 
-def penalty_hessian(x, x_prev, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
+def penalty_hessian(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
     """Hessian blocks of `penalty_energy`: A (k_e [c > 0] + k_d / h [damped, v.n < 0]) n n^T, (p, 3, 3)."""
     c = -signed_distance(x, normal, offset)
-    vn = (x - (x_prev if x_bar is None else x_bar)) @ normal / h
-    k = area * (ke * (c > 0) + kd / h * (damped_points(x_prev, normal, offset) & (vn < 0)))
+    vn = (x - (x_lag if x_bar is None else x_bar)) @ normal / h
+    k = area * (ke * (c > 0) + kd / h * (damped_points(x_lag, normal, offset) & (vn < 0)))
     return k[:, None, None] * np.outer(normal, normal)[None]
 
 
@@ -137,9 +145,9 @@ class _Penalty(PointTerm):
         """The damping k_d [Pa s/m] (0: the stiffness part alone)."""
         return 0.0
 
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+    def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
-        args = (x, x_prev, area, model.plane_normal, model.plane_offset, self.ke(model), self.kd(model), h, x_bar)
+        args = (x, x_lag, area, model.plane_normal, model.plane_offset, self.ke(model), self.kd(model), h, x_bar)
         return (penalty_energy(*args), penalty_gradient(*args) if order >= 1 else None,
                 penalty_hessian(*args) if order == 2 else None)
 
@@ -166,7 +174,7 @@ class BarrierContact(PointTerm):
     def applies(self, model: Model) -> bool:
         return model.has("contact") and model.contact.law == "barrier"
 
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+    def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         n, dhat = model.plane_normal, model.contact.barrier_distance
         phi = signed_distance(x, n, model.plane_offset)

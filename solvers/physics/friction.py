@@ -105,7 +105,7 @@ class Friction(PointTerm):
         return lagged_pressure(c.law, x, v, model.plane_normal, model.plane_offset, c.stiffness,
                                model.contact_damping, c.barrier_stiffness, c.barrier_distance)
 
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+    def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         """The potential with the integrator's velocity (x - x_bar) / h, h its effective step."""
         args = (x, x_bar, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)

@@ -42,14 +42,14 @@ _TERMS: list["Term"] = []
 @dataclass(frozen=True)
 class StepData:
     """One step's constants (`solvers.integrators`): the inertial target x_hat = x_tilde = x_bar + h_eff v_bar (n, 3)
-    [m], the start-of-step positions x_prev = x^n (n, 3) [m], the time step h [s], the lagged normal pressure fn (p,)
+    [m], the start-of-step positions x_lag = x^n (n, 3) [m], the time step h [s], the lagged normal pressure fn (p,)
     [Pa] at the model's contact points (None without friction), `inertia` (False: static equilibrium, no inertial
     term), and the integrator's x_bar (n, 3) [m] and effective step h_eff [s]: the inertial term is
     1/(2 h_eff^2) |x - x_hat|_M^2 and every dissipative term uses the velocity v(x) = (x - x_bar) / h_eff. Backward
-    Euler (the defaults, None): x_bar = x_prev, h_eff = h."""
+    Euler (the defaults, None): x_bar = x_lag, h_eff = h."""
 
     x_hat: np.ndarray
-    x_prev: np.ndarray
+    x_lag: np.ndarray
     h: float
     fn: np.ndarray | None = None
     inertia: bool = True
@@ -58,7 +58,7 @@ class StepData:
 
     def __post_init__(self) -> None:
         if self.x_bar is None:
-            object.__setattr__(self, "x_bar", self.x_prev)
+            object.__setattr__(self, "x_bar", self.x_lag)
         if self.h_eff is None:
             object.__setattr__(self, "h_eff", self.h)
 
@@ -106,15 +106,15 @@ class PointTerm(Term):
     """A term per contact point (contact, damping, friction): evaluated at any sample points."""
 
     @abstractmethod
-    def at_points(self, model: Model, x: np.ndarray, x_prev: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
+    def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         """Energy [J], gradient (p, 3) [N] (order >= 1) and Hessian blocks (p, 3, 3) [N/m] (order 2) at points x
-        (p, 3) [m] with start-of-step positions x_prev and the integrator's x_bar (p, 3) [m] (velocity
+        (p, 3) [m] with start-of-step positions x_lag and the integrator's x_bar (p, 3) [m] (velocity
         (x - x_bar) / h), area weights area (p,) [m^2], lagged pressure fn (p,), h the effective step h_eff [s]."""
 
     def _at(self, model: Model, step: StepData, x: np.ndarray, order: int) -> Evaluation:
         p = model.points
-        return self.at_points(model, x[p], step.x_prev[p], step.x_bar[p], model.area, step.fn, step.h_eff, order)
+        return self.at_points(model, x[p], step.x_lag[p], step.x_bar[p], model.area, step.fn, step.h_eff, order)
 
     def energy(self, model: Model, step: StepData, x: np.ndarray) -> float:
         return self._at(model, step, x, 0)[0]
