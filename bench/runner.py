@@ -236,8 +236,8 @@ def truth_config(suite, with_truth: bool = True, overrides: dict | None = None) 
         return None
     spec = (suite.truth or TruthSpec()).with_(**overrides, where="--truth", sep="-") if overrides else suite.truth
     for integrator in (spec.integrator, *spec.ladders):
-        ladder_variant(suite.scenarios[0].scenario, integrator, spec.depth,
-                       tol=spec.level_tol(spec.depth)).scenario(suite.scenarios[0].scenario)
+        ladder_variant(suite.scenarios[0].scenario, integrator, spec.depth, tol=spec.level_tol(spec.depth),
+                       lag=spec.contact_lag).scenario(suite.scenarios[0].scenario)
     return spec
 
 
@@ -253,8 +253,8 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
     for m in suite.scenarios:
         runs.append((m.scenario, m.scenario.mesh))
         if truth is not None:
-            runs.append((ladder_variant(m.scenario, truth.integrator, truth.depth,
-                                        tol=truth.level_tol(truth.depth)).scenario(m.scenario), m.scenario.mesh))
+            runs.append((ladder_variant(m.scenario, truth.integrator, truth.depth, tol=truth.level_tol(truth.depth),
+                                        lag=truth.contact_lag).scenario(m.scenario), m.scenario.mesh))
         for v in variants:
             try:
                 sc = v.scenario(m.scenario)
@@ -264,17 +264,19 @@ def guard_resources(suite, variants: Sequence[Variant], allow_large: bool = Fals
     check_runs(runs, allow_large=allow_large)
 
 
-def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENCE, tol: float | None = None
-                   ) -> Variant:
+def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENCE, tol: float | None = None,
+                   lag: str = "start") -> Variant:
     """Level k of a truth ladder: the full-space solver at dt / 2^k with `integrator`, a frame every
     frame_every x 2^k steps (the frames of every level fall on the same times); with `tol` (a tolerance ladder's
     level, `TruthSpec.level_tol`) the solver with adaptive steps at time.tol = tol instead, dt and frames the
-    scenario's."""
+    scenario's; `lag` other than `start` sets the runs' contact.lag (`TruthSpec.contact_lag`)."""
     overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k and tol is None else {}
     if integrator != sc.time.integrator:
         overrides["time.integrator"] = integrator
     if tol is not None:
         overrides["time.tol"] = tol
+    if lag != "start":
+        overrides["contact.lag"] = lag
     return Variant(solver, {}, label=ladder_label(integrator, k, "step" if tol is None else "tolerance"),
                    overrides=overrides, dt_scale=0.5 ** k if tol is None else 1.0)
 
@@ -299,7 +301,8 @@ class Ladder:
     def task(self, k: int) -> Task:
         """The task of level k."""
         sc = self.member.scenario
-        return Task(ladder_variant(sc, self.integrator, k, self.solver, self.spec.level_tol(k)).scenario(sc),
+        return Task(ladder_variant(sc, self.integrator, k, self.solver, self.spec.level_tol(k),
+                                   self.spec.contact_lag).scenario(sc),
                     self.solver, {})
 
     def add(self, task: Task, store: RunStore, previous: Trajectory | None) -> Trajectory | None:

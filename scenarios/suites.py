@@ -36,6 +36,8 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     start_tol = 1e-4                # steps (time.tol, docs/design.md "Adaptive steps") with time.tol =
                                     # start_tol / 8^k (required with and only with kind = "tolerance"; a fraction of
                                     # L in [1e-12, 0.5]): TOLERANCE_FACTOR
+    contact_lag = "start"           # the ladder runs' contact.lag: "start" (default, the scenario's) or
+                                    # "fixed-point" (lagged iterations; docs/design.md "Contact with the plane")
 
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }
@@ -67,7 +69,7 @@ from typing import Any, Literal
 
 from frictionbench.scenarios.errors import ScenarioError, checked_table
 from frictionbench.scenarios.load import NAME_PART, read_toml, scenario_from_dict
-from frictionbench.scenarios.model import Scenario, integrator_names
+from frictionbench.scenarios.model import CONTACT_LAGS, Scenario, integrator_names
 
 Split = Literal["train", "test"]
 SPLITS: tuple[Split, ...] = ("train", "test")
@@ -101,7 +103,9 @@ class TruthSpec:
     """How a suite's ground truths are made (`[truth]` table): the ladder's tolerance `tol` [fraction of L], its
     `depth` (most levels after the first), its `integrator`, the integrators of further `ladders` run for the
     frontier only, and its `kind`: `step` (level k at dt / 2^k) or `tolerance` (level k adaptive with time.tol =
-    `start_tol` / TOLERANCE_FACTOR^k, `level_tol`; start_tol None for the step kind)."""
+    `start_tol` / TOLERANCE_FACTOR^k, `level_tol`; start_tol None for the step kind); `contact_lag`: the
+    `contact.lag` of its runs (`start`: the scenario's own; a numerical choice, so every lag converges to the same
+    truth)."""
 
     tol: float = 0.005
     depth: int = 4
@@ -109,6 +113,7 @@ class TruthSpec:
     ladders: tuple[str, ...] = ()
     kind: str = "step"
     start_tol: float | None = None
+    contact_lag: str = "start"
 
     def level_tol(self, k: int) -> float | None:
         """time.tol [fraction of L] of level k of a tolerance ladder; None for a step ladder."""
@@ -118,8 +123,9 @@ class TruthSpec:
               where: str = "truth", sep: str = ".") -> "TruthSpec":
         """A validated copy with the given fields changed (None keeps a field); errors name `<where><sep><key>`
         (e.g. `--truth-depth` for command-line flags)."""
-        d = {"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders),
-             "kind": self.kind} | ({} if self.start_tol is None else {"start_tol": self.start_tol})
+        d = ({"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders),
+             "kind": self.kind, "contact_lag": self.contact_lag}
+             | ({} if self.start_tol is None else {"start_tol": self.start_tol}))
         d |= {k: v for k, v in (("tol", tol), ("depth", depth), ("integrator", integrator)) if v is not None}
         return truth_spec(d, where, sep)
 
@@ -211,7 +217,7 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 
 def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
-    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol"))
+    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag"))
     d = TruthSpec()
     tol = t.get("tol", d.tol)
     lo, hi = TRUTH_TOL_RANGE
@@ -243,9 +249,12 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
                                   or not lo_s <= start_tol <= hi_s):
         raise ScenarioError(f"{where}{sep}start_tol", start_tol,
                             f"expected a number in [{lo_s:g}, {hi_s:g}] (a fraction of L)")
+    lag = t.get("contact_lag", d.contact_lag)
+    if lag not in CONTACT_LAGS:
+        raise ScenarioError(f"{where}{sep}contact_lag", lag, f"expected one of {list(CONTACT_LAGS)}")
     return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)), kind=kind,
-                     start_tol=None if start_tol is None else float(start_tol))
+                     start_tol=None if start_tol is None else float(start_tol), contact_lag=lag)
 
 
 def _expand(d: object) -> tuple[str, str, bool, list[_Draft]]:

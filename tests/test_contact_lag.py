@@ -107,3 +107,17 @@ def test_a_contact_damping_ratio_is_resolved_per_mesh() -> None:
     medium = build_model(replace(sc, mesh=replace(sc.mesh, resolution="medium")),
                          load_mesh(replace(sc.mesh, resolution="medium")))
     assert medium.contact_damping != pytest.approx(kd, rel=1e-3)  # another mesh, another k_d for the same ratio
+
+
+def test_a_truth_may_lag_contact_to_the_fixed_point(tmp_path) -> None:
+    from frictionbench.bench.runner import ladder_variant
+    from frictionbench.scenarios.errors import ScenarioError
+    from frictionbench.scenarios.suites import truth_spec
+
+    spec = truth_spec({"contact_lag": "fixed-point"})
+    sc = sliding_block("start")
+    level = ladder_variant(sc, spec.integrator, 2, lag=spec.contact_lag).scenario(sc)
+    assert level.contact.lag == "fixed-point" and level.time.dt == pytest.approx(sc.time.dt / 4)
+    assert ladder_variant(sc, spec.integrator, 2).scenario(sc).contact.lag == "start"
+    with pytest.raises(ScenarioError, match="truth.contact_lag"):
+        truth_spec({"contact_lag": "implicit"})
