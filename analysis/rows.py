@@ -229,8 +229,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             rows.append(row | run_timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
         if scales is not None:  # each run's step against the scene's time scales
             for row in rows[first:]:
-                if row.get("dt") is not None:
-                    row |= timescales.resolution(scales, row["integrator"], row["dt"])
+                if row.get("dt") is not None:  # an adaptive run: at its median step
+                    row |= timescales.resolution(scales, row["integrator"], row.get("dt_median") or row["dt"])
     return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
 
 

@@ -364,7 +364,8 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
         ("zeta_contact_vertex", "-", "the most lightly damped contact vertex, min k_d a_i / (2 sqrt(k a_i m_i))"),
         ("tau_friction", "s", "the friction law's relaxation time of the whole body, M / (k_f A)"),
         ("tau_friction_vertex", "s", "the fastest contact vertex's, min m_i / (k_f a_i)"))),
-    Column("h_eff", "parameter", unit="s", meaning="the run's effective step (BDF2 2/3 dt, backward Euler dt)",
+    Column("h_eff", "parameter", unit="s",
+           meaning="the run's effective step (BDF2 2/3 dt, backward Euler dt; adaptive: of its median step)",
            source="frictionbench.analysis.timescales.effective_step"),
     *(Column(f"res_{name}", "parameter", unit="-", meaning=meaning,
              source="frictionbench.analysis.timescales.SceneTimescales.resolution") for name, meaning in (
