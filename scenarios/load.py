@@ -333,7 +333,8 @@ def _plane(raw: object) -> Plane | None:
     if norm == 0.0:
         raise ScenarioError("plane.normal", list(normal), "must be non-zero")
     if abs(norm - 1.0) > _UNIT_TOLERANCE:
-        normal = (normal[0] / norm, normal[1] / norm, normal[2] / norm)
+        x, y, z = (_finite(c / norm, "plane.normal", "after dividing by |normal|") for c in normal)
+        normal = (x, y, z)  # a component the division makes subnormal becomes 0.0 (`_finite`)
         offset = _finite(offset / norm, "plane.offset", "after dividing by |normal|")
     return Plane(normal=normal, offset=offset, friction=friction)
 
