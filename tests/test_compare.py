@@ -93,11 +93,20 @@ def test_changes_within_the_tolerances_pass_and_tolerances_are_configurable(tmp_
 
 
 def test_a_newly_failing_gate_is_a_regression_within_the_tolerance(tmp_path: Path):
-    limit = next(g["min"] for g in GATES if g["suite"] == "quick" and g["metric"] == "speedup")
-    a = _write(tmp_path / "a", _changed(speedup=1.1 * limit))
-    b = _write(tmp_path / "b", _changed(speedup=0.95 * limit))  # x1.16 slower, within x1.5, but under the gate's min
+    limit = next(g["max"] for g in GATES if g["suite"] == "quick" and g["metric"] == "pos_rmse_rel"
+                 and g.get("split") == "train" and not g.get("advisory"))
+    a = _write(tmp_path / "a", _changed(pos_rmse_rel=0.97 * limit))
+    b = _write(tmp_path / "b", _changed(pos_rmse_rel=1.03 * limit))  # +6%, within 10%, but over the gate's max
     code, out, _ = _cli("compare", a, b)
-    assert code == 1 and f"gate min {float(limit)} now fails" in out
+    assert code == 1 and f"gate max {float(limit)} now fails" in out
+
+
+def test_an_advisory_gate_crossed_within_the_tolerance_is_no_regression(tmp_path: Path):
+    limit = next(g["min"] for g in GATES if g["suite"] == "quick" and g["metric"] == "speedup")
+    assert next(g for g in GATES if g["suite"] == "quick" and g["metric"] == "speedup").get("advisory")
+    a = _write(tmp_path / "a", _changed(speedup=1.1 * limit))
+    b = _write(tmp_path / "b", _changed(speedup=0.95 * limit))  # x1.16 slower, within x1.5, under the advisory min
+    assert _cli("compare", a, b)[0] == 0
 
 
 @pytest.mark.parametrize(("change", "reason"), [
