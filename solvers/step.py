@@ -53,9 +53,10 @@ class StepProblem(ABC):
 
 
 # ----- where a step evaluates what contact lags --------------------------------------------------------------------
-#: Most re-lagged solves of a `fixed-point` step (the first solve included). Measured: 2-4 where a contact starts
-#: or ends within the step, 1-2 elsewhere; a step that reaches the cap keeps its last solve and counts it in the
-#: step's `lag_unconverged` counter.
+#: Most re-lagged solves of a `fixed-point` step (the first solve included); a step that reaches the cap keeps its
+#: last solve and counts it in the step's `lag_unconverged` counter. Measured (docs/figures.md): 2.6-3.3 solves a
+#: step on a sliding block (the cap on under 2% of the steps), 4-5 on the coarse cheese (the cap on 14-26%: the
+#: friction law's stick/slip switch keeps some steps from settling).
 LAG_MAX_SOLVES = 8
 
 
@@ -116,26 +117,26 @@ def lagged_contact(terms: Sequence[Term], model: Model, x: np.ndarray, v: np.nda
 def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
                  ) -> tuple[NewtonResult, dict[str, int]]:
     """One step's Newton solve(s) under `lag` (`ContactLag`) from the start coordinates y and velocities v.
-    Returns the last solve's result with the iterations, halvings, linear
-    iterations and stalls of every solve summed, and (a `fixed-point` step only) the counters `lag_solves` (solves
-    run) and `lag_unconverged` (1 where it stopped at LAG_MAX_SOLVES)."""
+    Returns the last solve's result with the iterations, halvings, linear iterations and stalls of every solve
+    summed, and (a `fixed-point` step only) the counters `lag_solves` (solves run) and `lag_unconverged` (1 where
+    it stopped at LAG_MAX_SOLVES)."""
     key = step.relag(y, v)
     res = step.newton(None)
     if lag.mode != "fixed-point":
         return res, {}
     solves, unconverged = 1, 1
     while solves < LAG_MAX_SOLVES:
-            new_key = step.relag(res.y, step.velocity(res.y))
-            if all(_same(a, b) for a, b in zip(key, new_key)):
-                unconverged = 0
-                break
-            key = new_key
-            again = step.newton(res.y)
-            res = res.then(again)
-            solves += 1
-            if again.iters == 1 and again.converged:
-                unconverged = 0
-                break
+        new_key = step.relag(res.y, step.velocity(res.y))
+        if all(_same(a, b) for a, b in zip(key, new_key)):
+            unconverged = 0
+            break
+        key = new_key
+        again = step.newton(res.y)
+        res = res.then(again)
+        solves += 1
+        if again.iters == 1 and again.converged:
+            unconverged = 0
+            break
     return res, {"lag_solves": solves, "lag_unconverged": unconverged}
 
 
