@@ -346,9 +346,9 @@ def _contact(raw: object) -> Contact:
     law = _string(t.get("law", d.law), "contact.law")
     if law not in CONTACT_LAWS:
         raise ScenarioError("contact.law", law, f"expected one of {list(CONTACT_LAWS)}")
-    ratio = t.get("damping_ratio")
-    if ratio is not None:
-        ratio = _number(ratio, "contact.damping_ratio", ge=0.0)
+    ratio = None
+    if "damping_ratio" in t:
+        ratio = _number(t["damping_ratio"], "contact.damping_ratio", ge=0.0)
         if "damping" in t:
             raise ScenarioError("contact.damping_ratio", ratio,
                                 f"give either contact.damping (here {t['damping']!r}) or contact.damping_ratio, not both")
