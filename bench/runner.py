@@ -15,6 +15,7 @@ import os
 import sys
 import time
 from collections.abc import Sequence
+from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -118,39 +119,58 @@ def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: 
     return RunResult(traj, stats)
 
 
+#: Most submissions of one task whose future the executor cancels (`run_tasks`).
+MAX_ATTEMPTS = 3
+
+
 def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, executor: str,
               desc: str) -> int:
     """Execute the tasks not yet done, `jobs` at a time, with a progress bar; returns how many were computed.
 
     Each distinct mesh and artefact is shared with the workers once; the client stores each result as it
-    arrives, so an interruption costs only the tasks in flight (a Dask task whose worker dies is rerun on another).
-    A task that gives no result (not a failed run, which is a result) is raised once every other one is stored.
+    arrives, so an interruption costs only the tasks in flight (a Dask task whose worker dies is rerun on another;
+    one the executor cancels instead, as Dask's scheduler does when the worker held the only copy of a shared mesh
+    ("lost dependencies"), is submitted again with its mesh and artefacts shared afresh, up to MAX_ATTEMPTS times in
+    all). A task that gives no result (not a failed run, which is a result) is raised once every other one is
+    stored.
     """
     todo = [t for t in {t.key: t for t in tasks}.values() if not store.done(t.key)]
     if not todo:
         return 0
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    with make_executor(executor, jobs) as ex:
-        meshes: dict = {}
-        artefacts: dict = {}
-        futures = {}
-        for t in todo:
-            spec = t.mesh or t.scenario.mesh
-            if spec not in meshes:
-                meshes[spec] = ex.share(load_mesh(spec))
-            for folder in artefact_folders(t.params):
-                if folder not in artefacts:
-                    artefacts[folder] = ex.share(Artefact.of(folder))
-            carried = tuple(artefacts[folder] for folder in artefact_folders(t.params))
-            futures[ex.submit(execute, t, meshes[spec], carried, device, threads, entries())] = t
+    with make_executor(executor, jobs) as ex, tqdm(total=len(todo), desc=desc, unit="run") as bar:
+        shared: dict = {}
+
+        def submit(t: Task, fresh: bool = False):
+            """Submit t with its mesh and artefacts shared once (`fresh`: shared again, the earlier copies lost)."""
+            needs = [t.mesh or t.scenario.mesh, *artefact_folders(t.params)]
+            for need in needs:
+                if fresh or need not in shared:
+                    shared[need] = ex.share(load_mesh(need) if isinstance(need, MeshSpec) else Artefact.of(need))
+            return ex.submit(execute, t, shared[needs[0]], tuple(shared[n] for n in needs[1:]), device, threads,
+                             entries())
+
+        pending = {submit(t): t for t in todo}
+        attempts = {t.key: 1 for t in todo}
         lost = []
-        for f in tqdm(ex.as_completed(futures), total=len(futures), desc=desc, unit="run"):
-            try:
-                result = f.result()
-            except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
-                lost.append(err)      # still stored, and the rerun computes only this one
-                continue
-            store.save(futures[f].key, result.trajectory, result.stats)
+        while pending:
+            again = {}
+            for f in ex.as_completed(pending):
+                t = pending[f]
+                try:
+                    result = f.result()
+                except CancelledError as err:
+                    if attempts[t.key] < MAX_ATTEMPTS:
+                        attempts[t.key] += 1
+                        again[submit(t, fresh=True)] = t
+                        continue
+                    lost.append(err)
+                except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
+                    lost.append(err)      # still stored, and the rerun computes only this one
+                else:
+                    store.save(t.key, result.trajectory, result.stats)
+                bar.update()
+            pending = again
     if lost:
         raise lost[0]
     return len(todo)

@@ -11,6 +11,7 @@ import pytest
 from frictionbench.bench.cli import main
 from frictionbench.bench.runner import Task, run_suite, run_tasks
 from frictionbench.bench.store import RunStore
+from frictionbench.scenarios.load import scenario_from_dict
 from frictionbench.scenarios.suites import load_suite
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
@@ -282,3 +283,53 @@ def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
         if gate["suite"] == suite and gate["variant"] != "*":
             named = gate["variant"] if isinstance(gate["variant"], list) else [gate["variant"]]
             assert set(named) <= labels, (gate, sorted(labels))
+
+
+def test_a_task_the_executor_cancels_is_submitted_again(tmp_path: Path, monkeypatch) -> None:
+    """A future the executor cancels (Dask's scheduler may, when the worker that held the task died) gives no result:
+    run_tasks submits the task again, up to MAX_ATTEMPTS times in all, and then raises."""
+    from concurrent.futures import CancelledError, Future
+
+    from frictionbench.bench import runner
+
+    class Cancelling:
+        """An executor that cancels the first `cancel` submissions and runs the others inline."""
+
+        def __init__(self, cancel: int) -> None:
+            self.cancel, self.submitted = cancel, 0
+
+        def share(self, obj):
+            return obj
+
+        def submit(self, fn, *args):
+            self.submitted += 1
+            f = Future()
+            if self.submitted <= self.cancel:
+                f.cancel()
+            else:
+                f.set_result(fn(*args))
+            return f
+
+        @staticmethod
+        def as_completed(futures):
+            return list(futures)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return None
+
+    sc = scenario_from_dict(block_drop(duration=0.02) | {"name": "cancelled"})
+    task = runner.Task(sc, "full", {})
+    for cancel, ok in ((runner.MAX_ATTEMPTS - 1, True), (runner.MAX_ATTEMPTS, False)):
+        executor = Cancelling(cancel)
+        monkeypatch.setattr(runner, "make_executor", lambda *a, executor=executor: executor)
+        store = runner.RunStore(tmp_path / f"runs{cancel}")
+        if ok:
+            assert runner.run_tasks([task], store, "cpu", 1, "process", "t") == 1 and store.done(task.key)
+        else:
+            with pytest.raises(CancelledError):
+                runner.run_tasks([task], store, "cpu", 1, "process", "t")
+            assert not store.done(task.key)
+        assert executor.submitted == min(cancel + 1, runner.MAX_ATTEMPTS)
