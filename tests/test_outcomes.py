@@ -4,7 +4,7 @@ over a made-up truth ladder, their declaration in the schema and a gate on one o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +27,7 @@ from frictionbench.scenarios.suites import Suite, SuiteMember
 from frictionbench.solvers.integrators import BackwardEuler
 from frictionbench.solvers.trajectory import Trajectory
 
+from fakes import FakeLadder, FakeStore
 from test_metrics import L, unit_cube
 
 G = 9.81
@@ -181,25 +182,6 @@ def test_each_outcome_converges_over_the_ladder_with_its_own_estimate_and_certif
     assert one["truth_slide_diff"] is None and one["truth_slide_certified"] is False
 
 
-@dataclass
-class FakeLadder:
-    """A truth ladder as row building reads it (`analysis.rows.LadderRuns`)."""
-
-    integrator: str
-    tasks: list
-    differences: list
-    failed: bool = False
-    frame_differences: tuple | None = None
-
-
-class Store:
-    """Stored runs by key, as `bench.store.RunStore.load` gives them."""
-
-    def __init__(self, runs: dict) -> None:
-        self.runs = runs
-
-    def load(self, key: str) -> tuple[Trajectory, dict]:
-        return self.runs[key]
 
 
 def test_every_row_of_a_scenario_gets_the_truths_outcome_convergence_and_its_own_errors(tmp_path: Path):
@@ -208,7 +190,7 @@ def test_every_row_of_a_scenario_gets_the_truths_outcome_convergence_and_its_own
     tasks = [Task(replace(sc, time=replace(sc.time, dt=0.1 / 2 ** k)), "full", {}) for k in range(3)]
     stats = {"contact_stiffness": PENALTY.stiffness, "step_ms_median": 1.0}
     trajs = [decelerating(T=T) for T in stops]
-    store = Store({task.key: (traj, stats) for task, traj in zip(tasks, trajs)})
+    store = FakeStore({task.key: (traj, stats) for task, traj in zip(tasks, trajs)})
     ladder = FakeLadder("backward-euler", tasks, [0.01, 0.004])
     rows = collect_rows(Suite("s", "", (SuiteMember(sc, "train", {}),)), {sc.name: tasks[0]},
                         StoreRuns(store, [], []), {sc.name: {"backward-euler": ladder}})

@@ -5,7 +5,7 @@ and the report beside each truth."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -30,6 +30,8 @@ from frictionbench.solvers.physics.material import rest_stiffness
 from frictionbench.solvers.scene import Model
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.trajectory import Trajectory
+
+from fakes import FakeLadder, FakeStore
 
 #: The block resting on its face: edge [m], density [kg/m^3] (M = 1 kg), penalty stiffness and damping per area.
 EDGE, RHO, KE, KD = 0.1, 1000.0, 1.0e6, 50.0
@@ -169,25 +171,6 @@ def test_a_block_on_its_face_bounces_at_the_whole_body_contact_frequency(cube):
 
 
 # ----- rows and report -----------------------------------------------------------------------------------------
-@dataclass
-class Ladder:
-    """A truth ladder as row building reads it (`analysis.rows.LadderRuns`)."""
-
-    integrator: str
-    tasks: list
-    differences: list
-    failed: bool = False
-    frame_differences: tuple | None = None
-
-
-class Store:
-    """Stored runs by key, as `bench.store.RunStore.load` gives them."""
-
-    def __init__(self, runs: dict) -> None:
-        self.runs = runs
-
-    def load(self, key: str) -> tuple[Trajectory, dict]:
-        return self.runs[key]
 
 
 def test_every_row_gets_the_scene_time_scales_and_its_step_resolution_and_the_report_shows_them(cube, tmp_path):
@@ -199,8 +182,8 @@ def test_every_row_gets_the_scene_time_scales_and_its_step_resolution_and_the_re
     levels = [replace(sc, time=replace(sc.time, dt=sc.time.dt / 2**k)) for k in range(3)]
     ref_task, tasks = Task(sc, "full", {}), [Task(level, "full", {"k": k}) for k, level in enumerate(levels)]
     stats = {"contact_stiffness": KE, "step_ms_median": 1.0}
-    store = Store({t.key: (run, stats) for t in [ref_task, *tasks]})
-    ladders = {"cube": {"bdf2": Ladder("bdf2", tasks, [0.01, 0.004])}}
+    store = FakeStore({t.key: (run, stats) for t in [ref_task, *tasks]})
+    ladders = {"cube": {"bdf2": FakeLadder("bdf2", tasks, [0.01, 0.004])}}
     rows = collect_rows(Suite("toy", "", (SuiteMember(sc, "test", {}),)), {"cube": ref_task},
                         StoreRuns(store, [], []), ladders)
     assert set(SCENE_COLUMNS) | set(RESOLUTION_COLUMNS) <= set(COLUMNS)
