@@ -108,6 +108,8 @@ def lagged_contact(terms: Sequence[Term], model: Model, x: np.ndarray, v: np.nda
     fn = lagged_at_start(terms, model, x, v)
     if model.plane_normal is None:
         return fn, np.zeros(x.shape[0], bool), x
+    if x is x_start:  # the start lag (every step's first solve): nothing to choose between
+        return fn, damped_points(x, model.plane_normal, model.plane_offset), x
     lower = signed_distance(x_start, model.plane_normal, model.plane_offset) < signed_distance(
         x, model.plane_normal, model.plane_offset)
     x_gate = np.where(lower[:, None], x_start, x)

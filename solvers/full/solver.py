@@ -221,8 +221,10 @@ class _LaggedStep:
         (`lagged_contact`)."""
         sv, m, lag = self.solver, self.solver.model, self.lag
         p = m.points
-        fn, gate, x_gate = lagged_contact(sv.terms, m, x_lag[p], v_lag[p], self.x_start[p])
-        if x_lag is not self.x_start:  # a re-lag: the gate's positions at the contact points
+        start = x_lag is self.x_start  # the step's first solve: the lag at the start
+        x_start_p = self.x_start[p]
+        fn, gate, x_gate = lagged_contact(sv.terms, m, x_start_p if start else x_lag[p], v_lag[p], x_start_p)
+        if not start:  # a re-lag: the gate's positions at the contact points
             x_lag = x_lag.copy()
             x_lag[p] = x_gate
         sv.begin(StepData(lag.y_tilde, x_lag, self.dt, fn, x_bar=lag.y_bar, h_eff=lag.h_eff))
