@@ -8,9 +8,30 @@ import sys
 import threading
 from pathlib import Path
 
+from frictionbench.bench.executors import usable_cores
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TruthSpec
+
+JOBS_HELP = ("runs at a time, each with cores / jobs threads (default: on the CPU this machine's usable cores, "
+             f"{usable_cores()} here; on CUDA 1, the GPU's runs one after another). Results do not depend on it; "
+             "per-step timings do a little, so compare timings at equal --jobs")
+
+
+def jobs_arg(text: str) -> int:
+    """--jobs: a positive whole number."""
+    try:
+        jobs = int(text)
+    except ValueError:
+        jobs = 0
+    if jobs < 1:
+        raise argparse.ArgumentTypeError(f"--jobs = {text!r}: expected a whole number >= 1")
+    return jobs
+
+
+def resolve_jobs(jobs: int | None, device: str) -> int:
+    """--jobs as given, else the default of JOBS_HELP for `device`."""
+    return jobs if jobs is not None else (1 if device == "cuda" else usable_cores())
 
 
 def resolve_scenario(ref: str) -> Scenario:
@@ -142,7 +163,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"error: {err}", file=sys.stderr)
             return 2
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
-                    jobs=args.jobs, executor=args.executor, report=not args.no_report and not with_baseline,
+                    jobs=resolve_jobs(args.jobs, args.device), executor=args.executor, report=not args.no_report and not with_baseline,
                     only=args.only, allow_large=args.allow_large, with_truth=not args.no_truth,
                     truth_overrides={"tol": args.truth_tol, "depth": args.truth_depth,
                                      "integrator": args.truth_integrator})
@@ -173,7 +194,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     out = Path(args.out)
     store = RunStore(Path(args.store) if args.store else out / "runs")
     tasks = [Task(m.scenario, REFERENCE, {}) for m in members]
-    run_tasks(tasks, store, args.device if args.data_device else "cpu", args.jobs, "process", "training data")
+    data_device = args.device if args.data_device else "cpu"
+    run_tasks(tasks, store, data_device, resolve_jobs(args.jobs, data_device), "process", "training data")
     settings = TrainSettings(r=args.r, epochs=args.epochs, affine=args.affine, seed=args.seed, points=args.points)
     path = train_from_trajectories([store.folder(t.key) / "trajectory.npz" for t in tasks], out, settings,
                                    args.device, identity={"suite": suite.name, "mesh": shapes.pop(),
@@ -334,7 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "frictionbench.bench.variants; the reference's name for the reference only)")
     s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--only", help="run only the members whose names match this shell pattern, e.g. 'paper/cheese_*'")
-    s.add_argument("--jobs", type=int, default=1)
+    s.add_argument("--jobs", type=jobs_arg, help=JOBS_HELP)
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--executor", default="process", choices=["process", "dask"])
     s.add_argument("--out", required=True)
@@ -359,7 +381,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--data-device", action="store_true", help="also simulate the training data on --device")
-    s.add_argument("--jobs", type=int, default=1)
+    s.add_argument("--jobs", type=jobs_arg, help=JOBS_HELP)
     s.add_argument("--store", help="run store for the training trajectories (default OUT/runs)")
     s.add_argument("--out", required=True)
     _add_allow_large_arg(s)

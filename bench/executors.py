@@ -14,6 +14,12 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as cf_as_completed
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the platform has one, else the CPU count)."""
+    affinity = getattr(os, "sched_getaffinity", None)
+    return len(affinity(0)) if affinity else (os.cpu_count() or 1)
+
+
 class ProcessExecutor:
     """A local pool of `jobs` worker processes (spawned: warp and taichi do not survive a fork)."""
 

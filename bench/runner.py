@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,13 +26,13 @@ from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel
 from frictionbench.analysis.rows import collect_rows, ladder_label
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.analysis.truth import ladder_continues
-from frictionbench.bench.executors import make_executor
+from frictionbench.bench.executors import make_executor, usable_cores
 from frictionbench.bench.payload import Artefact, RunResult, artefact_folders, localised
 from frictionbench.bench.store import RunStore, run_key
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
 from frictionbench.scenarios.model import MeshSpec, Scenario
-from frictionbench.scenarios.suites import SuiteMember, TruthSpec, load_suite
+from frictionbench.scenarios.suites import TOLERANCE_FACTOR, SuiteMember, TruthSpec, load_suite
 from frictionbench.solvers.registry import entries, register_entries, unavailable
 from frictionbench.solvers.trajectory import Trajectory
 
@@ -124,20 +124,39 @@ MAX_ATTEMPTS = 3
 
 
 def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, executor: str,
-              desc: str) -> int:
+              desc: str, then: Callable[[Task], Sequence[Task]] | None = None) -> int:
     """Execute the tasks not yet done, `jobs` at a time, with a progress bar; returns how many were computed.
 
     Each distinct mesh and artefact is shared with the workers once; the client stores each result as it
     arrives, so an interruption costs only the tasks in flight (a Dask task whose worker dies is rerun on another;
     one the executor cancels instead, as Dask's scheduler does when the worker held the only copy of a shared mesh
     ("lost dependencies"), is submitted again with its mesh and artefacts shared afresh, up to MAX_ATTEMPTS times in
-    all). A task that gives no result (not a failed run, which is a result) is raised once every other one is
-    stored.
+    all). `then(task)`, where given, is called on the client once a task's result is stored (or found stored) and
+    returns the tasks that follow from it (a ladder's next level), submitted at once: no worker waits for a slower
+    member's run. A task that gives no result (not a failed run, which is a result) is raised once every other one
+    is stored.
     """
-    todo = [t for t in {t.key: t for t in tasks}.values() if not store.done(t.key)]
+    seen: set[str] = set()
+
+    def not_done(new: Sequence[Task]) -> list[Task]:
+        """The tasks of `new` not seen yet and not stored, after following the stored ones through `then`."""
+        out, queue = [], list(new)
+        while queue:
+            t = queue.pop(0)
+            if t.key in seen:
+                continue
+            seen.add(t.key)
+            if not store.done(t.key):
+                out.append(t)
+            elif then is not None:
+                queue.extend(then(t))
+        return out
+
+    todo = not_done(tasks)
     if not todo:
         return 0
-    threads = max(1, (os.cpu_count() or 1) // jobs)
+    threads = max(1, usable_cores() // jobs)
+    computed = 0
     with make_executor(executor, jobs) as ex, tqdm(total=len(todo), desc=desc, unit="run") as bar:
         shared: dict = {}
 
@@ -154,26 +173,29 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
         attempts = {t.key: 1 for t in todo}
         lost = []
         while pending:
-            again = {}
-            for f in ex.as_completed(pending):
-                t = pending[f]
-                try:
-                    result = f.result()
-                except CancelledError as err:
-                    if attempts[t.key] < MAX_ATTEMPTS:
-                        attempts[t.key] += 1
-                        again[submit(t, fresh=True)] = t
-                        continue
-                    lost.append(err)
-                except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
-                    lost.append(err)      # still stored, and the rerun computes only this one
-                else:
-                    store.save(t.key, result.trajectory, result.stats)
-                bar.update()
-            pending = again
+            f = next(iter(ex.as_completed(pending)))
+            t = pending.pop(f)
+            try:
+                result = f.result()
+            except CancelledError as err:
+                if attempts[t.key] < MAX_ATTEMPTS:
+                    attempts[t.key] += 1
+                    pending[submit(t, fresh=True)] = t
+                    continue
+                lost.append(err)
+            except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
+                lost.append(err)      # still stored, and the rerun computes only this one
+            else:
+                store.save(t.key, result.trajectory, result.stats)
+                computed += 1
+                for n in not_done(then(t) if then is not None else ()):
+                    pending[submit(n)] = n
+                    attempts[n.key] = 1
+                    bar.total += 1
+            bar.update()
     if lost:
         raise lost[0]
-    return len(todo)
+    return computed
 
 
 def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
@@ -345,31 +367,42 @@ class Ladder:
 
 def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int, executor: str,
                 reference: str = REFERENCE) -> dict[str, dict[str, Ladder]]:
-    """Every member's truth ladder (`spec.integrator`) climbed level by level, all members of a level at once,
-    until `ladder_continues` says stop; then the ladders of `spec.ladders` to the same level as the member's truth.
-    Every run is an ordinary run of the store (cached, resumable). Returns scenario -> integrator -> Ladder (the
-    truth's integrator first)."""
+    """Every member's truth ladder (`spec.integrator`) climbed level by level until `ladder_continues` says stop,
+    each member on its own (its next level is submitted as soon as its last one is stored); then, for that member,
+    the ladders of `spec.ladders` to the same level as its truth. Every run is an ordinary run of the store
+    (cached, resumable). Returns scenario -> integrator -> Ladder (the truth's integrator first)."""
     ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference, spec)}
                for m in suite.scenarios}
-    climbing = [by[spec.integrator] for by in ladders.values()]
+    climbing: dict[str, tuple[Ladder, int]] = {}  # task key -> (truth ladder, level)
     last: dict[int, Trajectory | None] = {}
-    k = 0
-    while climbing:
-        tasks = [ladder.task(k) for ladder in climbing]
-        level = f"dt/{2 ** k}" if spec.start_tol is None else f"tol {spec.level_tol(k):g}"
-        run_tasks(tasks, store, device, jobs, executor, f"truth ladder, {level}")
-        for ladder, task in zip(climbing, tasks):
-            last[id(ladder)] = ladder.add(task, store, last.get(id(ladder)))
-        climbing = [ladder for ladder in climbing
-                    if not ladder.failed and ladder_continues(ladder.differences, spec.tol, spec.depth)]
-        k += 1
-    others = []
-    for by in ladders.values():
-        truth = by[spec.integrator]
+    others: list[tuple[Ladder, Task]] = []
+
+    def climb(ladder: Ladder, k: int) -> Task:
+        task = ladder.task(k)
+        climbing[task.key] = (ladder, k)
+        return task
+
+    def then(task: Task) -> list[Task]:
+        """The next level of the truth ladder `task` belongs to; or, once that ladder stops, its member's frontier
+        ladders to the same level."""
+        if task.key not in climbing:  # a frontier ladder's run: recorded below, in level order
+            return []
+        ladder, k = climbing.pop(task.key)
+        last[id(ladder)] = ladder.add(task, store, last.get(id(ladder)))
+        if not ladder.failed and ladder_continues(ladder.differences, spec.tol, spec.depth):
+            return [climb(ladder, k + 1)]
+        last.pop(id(ladder), None)
+        by = ladders[ladder.member.scenario.name]
+        new = []
         for integrator in spec.ladders:
-            by[integrator] = Ladder(truth.member, integrator, reference, spec)
-            others += [(by[integrator], by[integrator].task(k)) for k in range(truth.good_levels)]
-    run_tasks([t for _, t in others], store, device, jobs, executor, "frontier ladders")
+            by[integrator] = Ladder(ladder.member, integrator, reference, spec)
+            new += [(by[integrator], by[integrator].task(j)) for j in range(ladder.good_levels)]
+        others.extend(new)
+        return [t for _, t in new]
+
+    kind = "dt / 2^level" if spec.start_tol is None else f"tol {spec.start_tol:g} / {TOLERANCE_FACTOR:g}^level"
+    run_tasks([climb(by[spec.integrator], 0) for by in ladders.values()], store, device, jobs, executor,
+              f"truth ladders ({kind})", then=then)
     previous: dict[int, Trajectory | None] = {}
     for ladder, task in others:
         if not ladder.failed:

@@ -185,6 +185,19 @@ def test_simulate_selects_the_linear_solver_and_stats_json_says_which_ran(tmp_pa
 
 
 @needs_pardiso
+def test_a_new_pardiso_solver_does_not_search_the_environment_for_mkl(monkeypatch):
+    # pypardiso globs the whole lib tree for mkl_rt per solver unless PYPARDISO_MKL_RT names it (1.5 s each)
+    def no_glob(*args, **kwargs):
+        raise AssertionError("pypardiso searched for mkl_rt")
+
+    monkeypatch.setattr(linalg.pypardiso.pardiso_wrapper.glob, "glob", no_glob)
+    monkeypatch.setattr(linalg.pypardiso.pardiso_wrapper, "find_library", lambda name: None)
+    f = linalg.make_factoriser("pardiso", np.array([0, 1]), np.array([0]), 1)
+    f.factorize(np.diag([1.0, 2.0, 4.0])[None])
+    assert np.allclose(f.solve(np.ones(3)), [1.0, 0.5, 0.25], rtol=1e-14)
+
+
+@needs_pardiso
 def test_pardiso_refuses_an_indefinite_matrix_by_name_and_recovers_on_the_next():
     f = linalg.make_factoriser("pardiso", np.array([0, 1]), np.array([0]), 1)
     f.factorize(np.eye(3)[None])

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from frictionbench.bench.cli import main
+from frictionbench.bench.cli import main, resolve_jobs
+from frictionbench.bench.executors import usable_cores
 from frictionbench.bench.runner import Task, run_suite, run_tasks
 from frictionbench.bench.store import RunStore
 from frictionbench.scenarios.load import scenario_from_dict
@@ -333,3 +335,42 @@ def test_a_task_the_executor_cancels_is_submitted_again(tmp_path: Path, monkeypa
                 runner.run_tasks([task], store, "cpu", 1, "process", "t")
             assert not store.done(task.key)
         assert executor.submitted == min(cancel + 1, runner.MAX_ATTEMPTS)
+
+
+def test_jobs_default_to_the_usable_cores_on_the_cpu_and_to_one_on_cuda():
+    assert resolve_jobs(None, "cpu") == usable_cores() >= 1
+    assert resolve_jobs(None, "cuda") == 1
+    assert resolve_jobs(3, "cuda") == resolve_jobs(3, "cpu") == 3
+
+
+@pytest.mark.parametrize("jobs", ["0", "-2", "two"])
+def test_a_bad_jobs_count_is_refused_naming_the_flag_and_value(tmp_path, capsys, jobs):
+    with pytest.raises(SystemExit) as stop:
+        main(["run", "--suite", "quick", "--out", str(tmp_path / "o"), "--jobs", jobs])
+    assert stop.value.code == 2 and f"--jobs = '{jobs}'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_follow_up_tasks_run_as_soon_as_their_task_is_stored_and_again_on_resume(tmp_path: Path) -> None:
+    """run_tasks(then=...): a task's follow-ups (a ladder's next level) are submitted when its result is stored,
+    with no barrier between 'levels'; on a rerun the stored tasks are followed without running them."""
+    from frictionbench.bench import runner
+
+    def task(i: int) -> runner.Task:
+        return runner.Task(scenario_from_dict(block_drop(duration=0.01 * (i + 1)) | {"name": f"chain{i}"}), "full", {})
+
+    chain = [task(i) for i in range(3)]  # chain[i] -> chain[i + 1]
+    followed: list[int] = []
+
+    def then(t: runner.Task) -> list[runner.Task]:
+        i = next(i for i, c in enumerate(chain) if c.key == t.key)
+        followed.append(i)
+        return [chain[i + 1]] if i + 1 < len(chain) else []
+
+    store = RunStore(tmp_path / "runs")
+    assert runner.run_tasks(chain[:1], store, "cpu", 2, "process", "t", then=then) == 3
+    assert followed == [0, 1, 2] and all(store.done(t.key) for t in chain)
+    followed.clear()
+    shutil.rmtree(store.folder(chain[2].key))  # a run lost from the store: the rerun follows to it and computes it
+    assert runner.run_tasks(chain[:1], store, "cpu", 2, "process", "t", then=then) == 1
+    assert followed == [0, 1, 2] and store.done(chain[2].key)
