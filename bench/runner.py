@@ -11,7 +11,6 @@ a task carries what its worker needs and returns what it produced (`bench.payloa
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from collections.abc import Callable, Sequence
