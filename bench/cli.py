@@ -163,7 +163,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"error: {err}", file=sys.stderr)
             return 2
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
-                    jobs=resolve_jobs(args.jobs, args.device), executor=args.executor, report=not args.no_report and not with_baseline,
+                    jobs=resolve_jobs(args.jobs, args.device), executor=args.executor,
+                    report=not args.no_report and not with_baseline,
                     only=args.only, allow_large=args.allow_large, with_truth=not args.no_truth,
                     truth_overrides={"tol": args.truth_tol, "depth": args.truth_depth,
                                      "integrator": args.truth_integrator})

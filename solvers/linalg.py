@@ -35,8 +35,11 @@ try:  # loading pypardiso loads MKL's runtime (mkl_rt), so thread-pool limits en
     if not hasattr(pypardiso.PyPardisoSolver, "_call_pardiso"):  # the phase-level call used below (pypardiso 0.4)
         raise ImportError(f"pypardiso {pypardiso.__version__} has no PyPardisoSolver._call_pardiso")
     # Every PyPardisoSolver looks for mkl_rt again, by a recursive glob over the environment's lib tree (1.5 s a solver
-    # in a venv with torch) unless PYPARDISO_MKL_RT names it: name the library its module-level solver loaded.
-    os.environ.setdefault("PYPARDISO_MKL_RT", pypardiso.ps.libmkl._name)
+    # in a venv with torch) unless PYPARDISO_MKL_RT names it: name the library its module-level solver loaded (where
+    # this pypardiso has one; otherwise the search stays, slower but correct).
+    _loaded = getattr(getattr(getattr(pypardiso, "ps", None), "libmkl", None), "_name", None)
+    if _loaded:
+        os.environ.setdefault("PYPARDISO_MKL_RT", _loaded)
     PARDISO_ERROR = ""
 except (ImportError, OSError) as err:  # not installed (non-x86 platforms), or mkl_rt missing / not loadable
     pypardiso = None
