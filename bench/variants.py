@@ -63,6 +63,14 @@ INTEGRATORS = [
             overrides={"time.integrator": "bdf2", "time.tol": HARD_TOL, "contact.law": "barrier"}),
 ]
 
+#: Newton's VBD solver (a peer engine, `solvers.newton_vbd`) at its defaults: one substep of 10 iterations.
+NEWTON_VBD_DEFAULT = Variant("newton-vbd", {"substeps": 1, "iterations": 10}, label="s1-i10")
+
+#: Newton's VBD ladder: substeps at its default 10 iterations, and iterations at one substep.
+NEWTON_VBD = [NEWTON_VBD_DEFAULT,
+              *(Variant("newton-vbd", {"substeps": s, "iterations": 10}, label=f"s{s}-i10") for s in (4, 16, 64)),
+              *(Variant("newton-vbd", {"substeps": 1, "iterations": i}, label=f"s1-i{i}") for i in (5, 20, 50))]
+
 VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "licrom": [Variant("licrom", LICROM, label="r20")],
     "licrom-affine": [Variant("licrom", LICROM_AFFINE, label="affine-r24"),
@@ -91,11 +99,16 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
                  for tol in ADAPTIVE_TOLS],
     # the barrier contact law beside the penalty law of the reference
     "barrier": [BARRIER],
+    # Newton's VBD (needs the optional `newton`; skipped with the reason without it): its ladder on the frontier
+    "newton-vbd": NEWTON_VBD,
+    # Newton's VBD at its defaults only (the hard suite's advisory gates)
+    "newton-vbd-default": [NEWTON_VBD_DEFAULT],
     # the full-space solver under each integrator (backward Euler is the reference) and both contact laws: the hard
     # suite's stability gates hold under every one (docs/design.md "Hard cases")
     "integrators": INTEGRATORS,
     # hard suite: the integrators above, every reduced solver family and LiCROM's variants, LiCROM+affine under both
-    # contact laws (no remeshing or accuracy sweeps: those are about accuracy, and remeshing doubles the references)
+    # contact laws, and Newton's VBD at its defaults (no remeshing or accuracy sweeps: those are about accuracy, and
+    # remeshing doubles the references)
     "hard": [*INTEGRATORS,
              Variant("licrom", LICROM, label="r20"),
              Variant("licrom", LICROM_AFFINE, label="affine-r24"),
@@ -104,7 +117,8 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
              Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60"),
              Variant("licrom", LICROM_AFFINE | {"scheme": "projected_gradient"}, label="affine-r24-pg"),
              Variant("pod", {"r": 20}, label="r20"),
-             Variant("affine", {}, label="affine12")],
+             Variant("affine", {}, label="affine12"),
+             NEWTON_VBD_DEFAULT],
     # paper suite (medium meshes, issue targets): every reduced family, LiCROM+affine on the other mesh, the paper's
     # projected-gradient scheme on the optimised cubature (as the paper runs it: all tets costs ~1 s a step there),
     # the full-space solver on the other mesh carried back, and at half the time step (the reference's own time
