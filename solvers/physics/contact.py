@@ -59,30 +59,25 @@ def penalty_potential(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None, ord
     v = (x - x_bar) / h (h the integrator's effective step, x_bar its lagged positions; None: x_lag, backward Euler);
     its gradient A (-k_e c + k_d min(0, v.n) [damped]) n (p, 3) [N] (order >= 1) and Hessian blocks
     A (k_e [c > 0] + k_d / h [damped, v.n < 0]) n n^T (p, 3, 3) [N/m] (order 2), from one pass over the points.
-    A part whose coefficient (k_e or k_d) is 0 is left out: it adds exact zeros."""
-    phi = signed_distance(x, normal, offset)
-    c = np.maximum(0.0, -phi)
+    A part whose coefficient (k_e or k_d) is 0 is left out (it adds exact zeros)."""
+    zero = np.zeros(x.shape[0])
+    e = force = k = zero
+    if ke != 0.0:
+        phi = signed_distance(x, normal, offset)
+        c = np.maximum(0.0, -phi)
+        e = e + 0.5 * ke * c**2
+        if order >= 1:
+            force, k = force - ke * c, k + ke * (-phi > 0)
     if kd != 0.0:
         damped = damped_points(x_lag, normal, offset)
         vraw = (x - (x_lag if x_bar is None else x_bar)) @ normal / h
         vn = np.minimum(0.0, vraw) * damped  # min(0, v.n) at the damped points, 0 elsewhere [m/s]
-    if ke == 0.0:
-        e = 0.5 * h * kd * vn**2
-    else:
-        e = 0.5 * ke * c**2 if kd == 0.0 else 0.5 * ke * c**2 + 0.5 * h * kd * vn**2
+        e = e + 0.5 * h * kd * vn**2
+        if order >= 1:
+            force, k = force + kd * vn, k + kd / h * (damped & (vraw < 0))
     E = float(area @ e)
-    if order == 0:
-        return E, None, None
-    force = -ke * c if kd == 0.0 else (kd * vn if ke == 0.0 else -ke * c + kd * vn)
-    g = (area * force)[:, None] * normal[None, :]
-    if order == 1:
-        return E, g, None
-    if kd == 0.0:
-        k = area * (ke * (-phi > 0))
-    else:
-        slowing = kd / h * (damped & (vraw < 0))
-        k = area * (slowing if ke == 0.0 else ke * (-phi > 0) + slowing)
-    return E, g, k[:, None, None] * np.outer(normal, normal)[None]
+    g = (area * force)[:, None] * normal[None, :] if order >= 1 else None
+    return E, g, (area * k)[:, None, None] * np.outer(normal, normal)[None] if order == 2 else None
 
 
 def penalty_energy(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> float:

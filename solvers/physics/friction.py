@@ -55,7 +55,7 @@ def friction_potential(x, x_prev, area, fn, normal, mu, kf, h, order: int = 2) -
     k_slow = area * mu * fn / eps / h
     k_fast = area * mu * fn / (h * np.maximum(s, 1e-300))
     H = np.where(slow[:, None, None], k_slow[:, None, None] * T,
-                 k_fast[:, None, None] * (T[None] - np.einsum("pi,pj->pij", t, t)))
+                 k_fast[:, None, None] * (T[None] - t[:, :, None] * t[:, None, :]))
     return E, g, H * (fn > 0)[:, None, None]
 
 
