@@ -331,7 +331,10 @@ class ReducedSolver:
         self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
         self.point_terms = [t for t in self.terms if isinstance(t, PointTerm)]
         self.reach = max((t.reach(model) for t in self.point_terms), default=-np.inf)
-        self.contact_candidates = contact_candidates and self.reduced.N is not None and np.isfinite(self.reach)
+        self.contact_candidates = contact_candidates and self.reduced.N is not None and self.reach < np.inf
+        # N q below this (p,) [m]: the signed distance below the reach plus the round-off margin
+        self._near_below = (self.reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
+                            if self.contact_candidates else None)
         self._point_set: tuple[ReducedStep | None, _PointSet | None] = (None, None)  # the last evaluation's
 
     # ----- state mapping ---------------------------------------------------------------------------------
@@ -349,13 +352,12 @@ class ReducedSolver:
     def _candidates(self, q: np.ndarray, st: ReducedStep) -> np.ndarray | None:
         """The sample points where a point term can be nonzero at q (k,) (None: all points, the candidates being
         off): those whose signed distance phi_rest + N q is below the terms' largest `PointTerm.reach` (plus
-        CANDIDATE_MARGIN L of round-off) and those of the step's lagged support `st.lagged`. At every other point
+        CANDIDATE_MARGIN L of round-off; tested as N q < reach + margin - phi_rest) and those of the step's lagged support `st.lagged`. At every other point
         each term's energy, gradient and Hessian are exactly zero, so leaving them out changes sums by round-off
         only; the test costs one (p x r) product per evaluation."""
         if not self.contact_candidates:
             return None
-        rm = self.reduced
-        near = rm.phi_rest + rm.N @ q < self.reach + CANDIDATE_MARGIN * self.model.L
+        near = self.reduced.N @ q < self._near_below
         return np.flatnonzero(near if st.lagged is None else near | st.lagged)
 
     def _points(self, q: np.ndarray, st: ReducedStep) -> _PointSet:
