@@ -67,6 +67,11 @@ SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
 """Jacobians B with at most this fraction of non-zeros and at least this many columns (local bases such as
 `full_basis`) use sparse products; below, the dense r x r work is cheaper than sparse bookkeeping."""
 
+NUMPY_ENERGY_MAX_TETS = 400
+"""Cubatures of at most this many tets take their energy-only evaluation (the line search's) from the numpy
+reference rather than the taichi kernel: measured on dev-2c (one thread), numpy 47 us against the kernel's 268 us
+(its launch) at 58 tets, 132 against 274 at 300, 609 against 234 at 1000."""
+
 EXTREME_ROWS = 64
 """Rows of W (3n x r) with the largest norms whose |W dq|_inf alone decides most Newton iterations' convergence
 test (`_StepProblem.step_norm`)."""
@@ -171,11 +176,11 @@ class ReducedModel:
     def elastic(self, q: np.ndarray, mode: int) -> tuple[float, np.ndarray | None, np.ndarray | None]:
         """Cubature elastic energy [J], its gradient (r,) [N] (mode >= STRESS) and PSD-projected Hessian (r, r)
         [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c). The energy alone (the line
-        search's) comes from the numpy reference `snh_energy_density`: a few vectorised operations cost less than
-        a kernel launch (equal to round-off)."""
+        search's) of a small cubature (NUMPY_ENERGY_MAX_TETS) comes from the numpy reference `snh_energy_density`:
+        a few vectorised operations cost less than a kernel launch (equal to round-off)."""
         m = self.model
         F = self.deformation_gradients(q)
-        if mode == K.ENERGY:
+        if mode == K.ENERGY and self.wV.size <= NUMPY_ENERGY_MAX_TETS:
             return float(self.wV @ snh_energy_density(F, m.mu_snh, m.lam_snh)), None, None
         psi, P, H9 = K.snh_evaluate(F, m.mu_snh, m.lam_snh, mode)
         return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None,
