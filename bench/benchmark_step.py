@@ -106,6 +106,20 @@ def mid_contact_state(model: Model, settle: int, max_steps: int = 1000) -> tuple
     return state, k, np.asarray(frames)
 
 
+def _stepped(solver: FullSpaceSolver | ReducedSolver, state: State, dt: float, steps: int
+             ) -> tuple[State, list[float], list[int]]:
+    """Advance `state` by `steps` steps of `solver` (dt [s]); the end state, each step's wall time [s] and Newton
+    iterations."""
+    walls, iters = [], []
+    for _ in range(steps):
+        out = State(state.x, state.v, state.t)
+        st = solver.step(state, out, dt)
+        walls.append(st.wall_s)
+        iters.append(st.iterations)
+        state = out
+    return state, walls, iters
+
+
 def run_config(model: Model, state: State, linear: str, threads: int, steps: int) -> dict:
     """Step `steps` steps from `state` with one configuration; per-step means [ms] of each part, iterations."""
     dt = model.scenario.time.dt
@@ -119,13 +133,7 @@ def run_config(model: Model, state: State, linear: str, threads: int, steps: int
         if linear != "cg":
             clock.wrap(solver.factoriser, "factorize", "factorisation")
             clock.wrap(solver.factoriser, "solve", "solve")
-        walls, iters = [], []
-        for _ in range(steps):
-            out = State(state.x, state.v, state.t)
-            st = solver.step(state, out, dt)
-            walls.append(st.wall_s)
-            iters.append(st.iterations)
-            state = out
+        state, walls, iters = _stepped(solver, state, dt, steps)
     ms = {f"{p}_ms": 1e3 * totals[p] / steps for p in PARTS}
     step_ms = 1e3 * float(np.mean(walls))
     return {"linear": linear, "linear_solver": solver.info["linear_solver"], "threads": threads,
@@ -166,13 +174,7 @@ def run_reduced(model: Model, state: State, W: np.ndarray, cub: tuple, mode: str
             return ids
 
         solver._candidates = counted
-        walls, iters = [], []
-        for _ in range(steps):
-            out = State(state.x, state.v, state.t)
-            st = solver.step(state, out, dt)
-            walls.append(st.wall_s)
-            iters.append(st.iterations)
-            state = out
+        state, walls, iters = _stepped(solver, state, dt, steps)
     ms = {f"{p}_ms": 1e3 * clock.totals[p] / steps for p in REDUCED_PARTS}
     step_ms = 1e3 * float(np.mean(walls))
     return {"reduced": mode, "r": solver.reduced.r, "cubature_tets": int(solver.reduced.cub_ids.size),

@@ -357,9 +357,9 @@ class ReducedSolver:
     def _candidates(self, q: np.ndarray, st: ReducedStep) -> np.ndarray | None:
         """The sample points where a point term can be nonzero at q (k,) (None: all points, the candidates being
         off): those whose signed distance phi_rest + N q is below the terms' largest `PointTerm.reach` (plus
-        CANDIDATE_MARGIN L of round-off; tested as N q < reach + margin - phi_rest) and those of the step's lagged support `st.lagged`. At every other point
-        each term's energy, gradient and Hessian are exactly zero, so leaving them out changes sums by round-off
-        only; the test costs one (p x r) product per evaluation."""
+        CANDIDATE_MARGIN L of round-off; tested as N q < reach + margin - phi_rest) and those of the step's lagged
+        support `st.lagged`. At every other point each term's energy, gradient and Hessian are exactly zero, so
+        leaving them out changes sums by round-off only; the test costs one (p x r) product per evaluation."""
         if not self.contact_candidates:
             return None
         near = self.reduced.N @ q < self._near_below
