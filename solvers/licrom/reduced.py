@@ -384,15 +384,15 @@ class ReducedSolver:
         W_p (k, 3, r)."""
         pts = self._points(q, st)
         x = pts.positions(q)
-        E, g, H = 0.0, np.zeros_like(x), np.zeros((x.shape[0], 3, 3))
+        E, g, H = 0.0, None, None
         for term in self.point_terms:
             e, gp, Hp = term.at_points(self.model, x, pts.x_lag, pts.x_bar, pts.area, pts.fn, st.h_eff, order)
             E += e
             if order >= 1:
-                g += gp
+                g = gp if g is None else g + gp
             if order == 2:
-                H += Hp
-        return E, (g if order >= 1 else None), (H if order == 2 else None), pts.Wp
+                H = Hp if H is None else H + Hp
+        return E, g, H, pts.Wp
 
     def energy(self, q: np.ndarray, st: ReducedStep) -> float:
         """E(q) [J] of the step's incremental potential (up to a constant): the body terms' reduced energies, then
@@ -418,8 +418,8 @@ class ReducedSolver:
             g = g + Wp.reshape(-1, rm.r).T @ gp.ravel()
             active = np.flatnonzero(np.abs(Hp).sum(axis=(1, 2)) > 0.0)
             if active.size:
-                Wa = Wp[active]
-                H = H + Wa.reshape(-1, rm.r).T @ np.matmul(Hp[active], Wa).reshape(-1, rm.r)
+                Wa, Ha = (Wp, Hp) if active.size == Wp.shape[0] else (Wp[active], Hp[active])
+                H = H + Wa.reshape(-1, rm.r).T @ np.matmul(Ha, Wa).reshape(-1, rm.r)
         return g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
