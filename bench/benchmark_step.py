@@ -17,9 +17,11 @@ the solver's original path (SuperLU with a fresh ordering per iteration, one-thr
 The reduced step (`--reduced`, one thread): a basis of `--r` columns, the 12 affine fields and POD modes of the
 full-space frames that led to the mid-contact state (`solvers.baselines.pod_basis`: no network to train, the
 same r as the trained LiCROM variants), and `--cubature` optimised cubature tets on those frames; the projected
-mid-contact state steps `--reduced-steps` steps after a warm-up step, once per reduced configuration: `all-points`
+mid-contact state steps `--reduced-steps` steps after a warm-up step in each reduced configuration, `all-points`
 (the point terms at every contact sample point) and `candidates` (at the candidate points only,
-`ReducedSolver._candidates`). Parts, exclusive (a part's time leaves out the timed parts called inside it):
+`ReducedSolver._candidates`), the configurations interleaved step by step and each step the fastest of
+`--repeats` runs from the same state (a step is deterministic), so that a shared machine's load moves the ratio
+less. Parts, exclusive (a part's time leaves out the timed parts called inside it):
 elastic (the cubature tets, energy and Hessian), points (contact, damping and friction at the sample points),
 reduction (the rest of the gradient and Hessian: the products with the basis), linear solve (r x r Cholesky),
 line search (the rest of the energy evaluations), step norm (|W dq|_inf over the mesh) and other; the candidate
@@ -151,41 +153,77 @@ def reduced_setup(model: Model, frames: np.ndarray, r: int, cubature: int) -> tu
     return W, optimized_cubature(model, W, project(W, frames, model.mass), cubature)
 
 
-def run_reduced(model: Model, state: State, W: np.ndarray, cub: tuple, mode: str, steps: int) -> dict:
-    """Step `steps` reduced steps from `state` (projected) with the point terms at all points or the candidates
-    (`mode`, one of REDUCED); per-step means [ms] of each part (module doc), candidates per evaluation."""
-    if mode not in REDUCED:
-        raise ValueError(f"reduced configuration {mode!r}: expected one of {REDUCED}")
-    dt = model.scenario.time.dt
-    with threadpool_limits(1):
-        solver = ReducedSolver(model, W, cub, contact_candidates=mode == "candidates")
-        state = solver.project(state)
-        solver.step(state, State(state.x, state.v, state.t), dt)  # warm-up (kernel loading)
-        clock, counts = _Clock(), []
+class _ReducedRun:
+    """One reduced configuration (`mode`, one of REDUCED) stepping from the projected `state` with its parts timed
+    (module doc): the fastest of `repeats` runs of each step from the same state (a step is deterministic) is kept,
+    its wall time and parts."""
+
+    def __init__(self, model: Model, state: State, W: np.ndarray, cub: tuple, mode: str) -> None:
+        if mode not in REDUCED:
+            raise ValueError(f"reduced configuration {mode!r}: expected one of {REDUCED}")
+        self.mode, self.dt = mode, model.scenario.time.dt
+        self.solver = solver = ReducedSolver(model, W, cub, contact_candidates=mode == "candidates")
+        self.state = solver.project(state)
+        solver.step(self.state, State(self.state.x, self.state.v, self.state.t), self.dt)  # warm-up (kernels)
+        self.clock, self.counts = _Clock(), []
         for obj, method, part in ((solver.reduced, "elastic", "elastic"), (solver, "_point_terms", "points"),
                                   (solver, "gradient_hessian", "reduction"), (solver, "newton_solve", "linear_solve"),
                                   (solver, "energy", "line_search"), (solver, "_velocity_norm", "step_norm")):
-            clock.wrap(obj, method, part)
+            self.clock.wrap(obj, method, part)
         candidates = solver._candidates
 
         def counted(q: np.ndarray, st: object) -> np.ndarray | None:
             ids = candidates(q, st)
-            counts.append(solver.reduced.points.size if ids is None else ids.size)
+            self.counts.append(solver.reduced.points.size if ids is None else ids.size)
             return ids
 
         solver._candidates = counted
-        state, walls, iters = _stepped(solver, state, dt, steps)
-    ms = {f"{p}_ms": 1e3 * clock.totals[p] / steps for p in REDUCED_PARTS}
-    step_ms = 1e3 * float(np.mean(walls))
-    return {"reduced": mode, "r": solver.reduced.r, "cubature_tets": int(solver.reduced.cub_ids.size),
-            "points": int(solver.reduced.points.size), "candidates_mean": float(np.mean(counts)),
-            "candidates_max": int(np.max(counts)), "step_ms": step_ms, "step_ms_per_step": [1e3 * w for w in walls],
-            "newton_iters": iters, "iter_ms": 1e3 * float(np.sum(walls)) / max(1, sum(iters)), **ms,
-            "other_ms": step_ms - sum(ms.values()), "x_end": state.x}
+        self.walls: list[float] = []
+        self.iters: list[int] = []
+        self.parts = dict.fromkeys(REDUCED_PARTS, 0.0)
+
+    def step(self, repeats: int) -> None:
+        """One step, run `repeats` times from the same state; the fastest run's wall time [s] and parts kept."""
+        best = None
+        for _ in range(repeats):
+            before = dict(self.clock.totals)
+            out = State(self.state.x, self.state.v, self.state.t)
+            st = self.solver.step(self.state, out, self.dt)
+            if best is None or st.wall_s < best[0].wall_s:
+                best = st, out, {p: self.clock.totals[p] - before.get(p, 0.0) for p in REDUCED_PARTS}
+        st, self.state, parts = best
+        self.walls.append(st.wall_s)
+        self.iters.append(st.iterations)
+        for p in REDUCED_PARTS:
+            self.parts[p] += parts[p]
+
+    def record(self) -> dict:
+        """Per-step means [ms] of each part, candidates per evaluation, the end state."""
+        steps, rm = len(self.walls), self.solver.reduced
+        ms = {f"{p}_ms": 1e3 * self.parts[p] / steps for p in REDUCED_PARTS}
+        step_ms = 1e3 * float(np.mean(self.walls))
+        return {"reduced": self.mode, "r": rm.r, "cubature_tets": int(rm.cub_ids.size), "points": int(rm.points.size),
+                "candidates_mean": float(np.mean(self.counts)), "candidates_max": int(np.max(self.counts)),
+                "step_ms": step_ms, "step_ms_per_step": [1e3 * w for w in self.walls], "newton_iters": self.iters,
+                "iter_ms": 1e3 * float(np.sum(self.walls)) / max(1, sum(self.iters)), **ms,
+                "other_ms": step_ms - sum(ms.values()), "x_end": self.state.x}
+
+
+def run_reduced(model: Model, state: State, W: np.ndarray, cub: tuple, modes: list[str], steps: int,
+                repeats: int = 3) -> list[dict]:
+    """Step `steps` reduced steps from `state` (projected) in each configuration of `modes` (REDUCED), one
+    thread, the configurations interleaved step by step so that the machine's load falls on all alike, each step
+    the fastest of `repeats` runs (`_ReducedRun`); one record per configuration."""
+    with threadpool_limits(1):
+        runs = [_ReducedRun(model, state, W, cub, mode) for mode in modes]
+        for _ in range(steps):
+            for run in runs:
+                run.step(repeats)
+    return [run.record() for run in runs]
 
 
 def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, reduced: list[str] | None = None,
-              reduced_steps: int = 40, rank: int = 24, cubature: int = 60) -> list[dict]:
+              reduced_steps: int = 40, rank: int = 24, cubature: int = 60, repeats: int = 3) -> list[dict]:
     """One record per case x configuration (see the module doc), the full-space ones then the reduced ones;
     speedup = first configuration's step time / this one's, in this run."""
     records = []
@@ -212,8 +250,8 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, red
         if reduced:
             W, cub = reduced_setup(model, frames, rank, cubature)
             all_ms = all_x = None
-            for mode in reduced:
-                rec = run_reduced(model, state, W, cub, mode, reduced_steps)
+            for rec in run_reduced(model, state, W, cub, reduced, reduced_steps, repeats):
+                mode = rec["reduced"]
                 x_end = rec.pop("x_end")
                 if all_x is None:
                     all_ms, all_x = rec["step_ms"], x_end
@@ -244,13 +282,16 @@ def main() -> None:
     p.add_argument("--reduced-steps", type=int, default=40, help="timed reduced steps per configuration")
     p.add_argument("--r", type=int, default=24, help="reduced basis columns (12 affine + POD)")
     p.add_argument("--cubature", type=int, default=60, help="optimised cubature tets of the reduced step")
+    p.add_argument("--repeats", type=int, default=3, help="runs of each reduced step, the fastest kept")
     p.add_argument("--out", default="out/bench_step.json")
     a = p.parse_args()
-    records = benchmark(a.cases, a.configs, a.steps, a.settle, a.reduced, a.reduced_steps, a.r, a.cubature)
+    records = benchmark(a.cases, a.configs, a.steps, a.settle, a.reduced, a.reduced_steps, a.r, a.cubature,
+                        a.repeats)
     write_json_atomic(a.out, {"records": records, "provenance": provenance("cpu"),
                               "command": {"cases": a.cases, "configs": a.configs, "steps": a.steps,
                                           "settle": a.settle, "reduced": a.reduced,
-                                          "reduced_steps": a.reduced_steps, "r": a.r, "cubature": a.cubature}})
+                                          "reduced_steps": a.reduced_steps, "r": a.r, "cubature": a.cubature,
+                                          "repeats": a.repeats}})
 
 
 if __name__ == "__main__":
