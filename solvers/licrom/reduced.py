@@ -341,6 +341,7 @@ class ReducedSolver:
         self._near_below = (self.reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
                             if self.contact_candidates else None)
         self._point_set: tuple[ReducedStep | None, _PointSet | None] = (None, None)  # the last evaluation's
+        self._point_memo: tuple | None = None  # (st, q, result) of the last second-order point-term evaluation
 
     # ----- state mapping ---------------------------------------------------------------------------------
     def project(self, state: State) -> State:
@@ -381,7 +382,11 @@ class ReducedSolver:
                      ) -> tuple[float, np.ndarray | None, np.ndarray | None, np.ndarray]:
         """The point terms (contact, damping, friction) at the candidate sample points (`_points`): energy [J],
         per-point gradient (k, 3) [N] (order >= 1), Hessian blocks (k, 3, 3) [N/m] (order 2), and the basis there
-        W_p (k, 3, r)."""
+        W_p (k, 3, r). A second-order evaluation is kept, and returned again for the same step and q (any order):
+        the line search's accepted trial point is where the next Hessian is taken."""
+        memo = self._point_memo
+        if memo is not None and memo[0] is st and np.array_equal(memo[1], q):
+            return memo[2]
         pts = self._points(q, st)
         x = pts.positions(q)
         E, g, H = 0.0, None, None
@@ -392,16 +397,20 @@ class ReducedSolver:
                 g = gp if g is None else g + gp
             if order == 2:
                 H = Hp if H is None else H + Hp
+        if order == 2:
+            self._point_memo = st, q.copy(), (E, g, H, pts.Wp)
         return E, g, H, pts.Wp
 
     def energy(self, q: np.ndarray, st: ReducedStep) -> float:
         """E(q) [J] of the step's incremental potential (up to a constant): the body terms' reduced energies, then
-        the point terms at the sample points."""
+        the point terms at the sample points. With the contact candidates on, the point terms are evaluated to
+        second order (their energy is the same at any order): the line search nearly always accepts its first
+        trial point, and the Newton loop then asks for the Hessian there (`_point_terms` keeps it)."""
         E = 0.0
         for body in self.body_evaluations:
             E += body.reduced(q, st, 0)[0]
         if self.point_terms:
-            E += self._point_terms(q, st, 0)[0]
+            E += self._point_terms(q, st, 2 if self.contact_candidates else 0)[0]
         return E
 
     def gradient_hessian(self, q: np.ndarray, st: ReducedStep) -> tuple[np.ndarray, np.ndarray]:
