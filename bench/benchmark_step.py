@@ -1,7 +1,9 @@
-"""Benchmark of a full-space step in contact, its time broken down, with the linear solvers side by side.
+"""Benchmark of a full-space step in contact, its time broken down, with the linear solvers side by side, and
+the reduced (LiCROM, Newton) step beside it.
 
     python -m frictionbench.bench.benchmark_step --out out/bench_step.json
     python -m frictionbench.bench.benchmark_step --cases hard/E1e9 --steps 3 --configs superlu:1 pardiso:1
+    python -m frictionbench.bench.benchmark_step --cases paper/cheese_p1_mu0.5 --configs pardiso:1
 
 Each case (a suite member) is advanced with the default solver until a contact point first penetrates the plane,
 then `--settle` steps more: the mid-contact state. From it every configuration (`linear:threads`: the linear
@@ -10,8 +12,21 @@ solver, and the thread budget of MKL and of the element assembly, entered with `
 reports the wall time and where it went: assembly (gradient and Hessian kernels, `gradient_hessian`),
 factorisation and solve (the factoriser's calls), line search (energy evaluations), other (the rest: copies,
 residuals); Newton iterations per step; and the end state's distance to the first configuration's. `superlu:1` is
-the solver's original path (SuperLU with a fresh ordering per iteration, one-thread assembly). Compare times as
-ratios within one run: the machine may be shared.
+the solver's original path (SuperLU with a fresh ordering per iteration, one-thread assembly).
+
+The reduced step (`--reduced`, one thread): a basis of `--r` columns, the 12 affine fields and POD modes of the
+full-space frames that led to the mid-contact state (`solvers.baselines.pod_basis`: no network to train, the
+same r as the trained LiCROM variants), and `--cubature` optimised cubature tets on those frames; the projected
+mid-contact state steps `--reduced-steps` steps after a warm-up step in each reduced configuration, `all-points`
+(the point terms at every contact sample point) and `candidates` (at the candidate points only,
+`ReducedSolver._candidates`), the configurations interleaved step by step and each step the fastest of
+`--repeats` runs from the same state (a step is deterministic), so that a shared machine's load moves the ratio
+less. Parts, exclusive (a part's time leaves out the timed parts called inside it):
+elastic (the cubature tets, energy and Hessian), points (contact, damping and friction at the sample points),
+reduction (the rest of the gradient and Hessian: the products with the basis), linear solve (r x r Cholesky),
+line search (the rest of the energy evaluations), step norm (|W dq|_inf over the mesh) and other; the candidate
+points per evaluation; speedup against the first full-space configuration and against `all-points`; the end
+state's distance to the `all-points` run's. Compare times as ratios within one run: the machine may be shared.
 """
 
 from __future__ import annotations
@@ -24,6 +39,10 @@ from collections.abc import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from frictionbench.solvers.baselines import pod_basis, project
+from frictionbench.solvers.licrom.cubature import optimized_cubature
+from frictionbench.solvers.licrom.reduced import ReducedSolver
+
 from frictionbench.analysis.table import provenance
 from frictionbench.bench.cli import resolve_scenario
 from frictionbench.scenarios.atomic import write_json_atomic
@@ -34,20 +53,34 @@ from frictionbench.solvers.model import Model, State, build_model, initial_state
 CASES = ["paper/cheese_p1_mu0.5", "paper/sphere_p1_mu0.5", "hard/E1e9"]
 CONFIGS = ["superlu:1", "pardiso:1", "pardiso:2"]
 PARTS = ("assembly", "factorisation", "solve", "line_search")
+REDUCED = ["all-points", "candidates"]
+REDUCED_PARTS = ("elastic", "points", "reduction", "linear_solve", "line_search", "step_norm")
 
 
-def _timed(obj: object, method: str, totals: dict[str, float], part: str) -> None:
-    """Wrap obj.method (on the instance) so that its wall time adds to totals[part] [s]."""
-    inner: Callable = getattr(obj, method)
+class _Clock:
+    """Exclusive wall time per part [s] (`totals`) of wrapped methods: a call's time less that of the wrapped calls
+    made inside it."""
 
-    def wrapper(*args, **kwargs):
-        t0 = time.perf_counter()
-        try:
-            return inner(*args, **kwargs)
-        finally:
-            totals[part] += time.perf_counter() - t0
+    def __init__(self) -> None:
+        self.totals: dict[str, float] = defaultdict(float)
+        self._inner: list[float] = []  # per open call, the time of the wrapped calls inside it so far
 
-    setattr(obj, method, wrapper)
+    def wrap(self, obj: object, method: str, part: str) -> None:
+        """Wrap obj.method (on the instance) so that its exclusive wall time adds to totals[part]."""
+        inner: Callable = getattr(obj, method)
+
+        def wrapper(*args, **kwargs):
+            self._inner.append(0.0)
+            t0 = time.perf_counter()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                elapsed = time.perf_counter() - t0
+                self.totals[part] += elapsed - self._inner.pop()
+                if self._inner:
+                    self._inner[-1] += elapsed
+
+        setattr(obj, method, wrapper)
 
 
 def in_contact(model: Model, x: np.ndarray) -> bool:
@@ -56,20 +89,37 @@ def in_contact(model: Model, x: np.ndarray) -> bool:
         (x[model.points] @ model.plane_normal < model.plane_offset).any())
 
 
-def mid_contact_state(model: Model, settle: int, max_steps: int = 1000) -> tuple[State, int]:
-    """The state `settle` steps after the first step that ends in contact (default solver), and its step index."""
+def mid_contact_state(model: Model, settle: int, max_steps: int = 1000) -> tuple[State, int, np.ndarray]:
+    """The state `settle` steps after the first step that ends in contact (default solver), its step index, and
+    the displacements x - X of every frame up to it (k + 1, n, 3) [m]."""
     solver = FullSpaceSolver(model)
     state, k, touched = initial_state(model), 0, None
     dt = model.scenario.time.dt
+    frames = [state.x - model.X]
     while touched is None or k < touched + settle:
         out = State(state.x, state.v, state.t)
         solver.step(state, out, dt)
         state, k = out, k + 1
+        frames.append(state.x - model.X)
         if touched is None and in_contact(model, state.x):
             touched = k
         if k >= max_steps:
             raise RuntimeError(f"{model.scenario.name}: no contact within {max_steps} steps")
-    return state, k
+    return state, k, np.asarray(frames)
+
+
+def _stepped(solver: FullSpaceSolver | ReducedSolver, state: State, dt: float, steps: int
+             ) -> tuple[State, list[float], list[int]]:
+    """Advance `state` by `steps` steps of `solver` (dt [s]); the end state, each step's wall time [s] and Newton
+    iterations."""
+    walls, iters = [], []
+    for _ in range(steps):
+        out = State(state.x, state.v, state.t)
+        st = solver.step(state, out, dt)
+        walls.append(st.wall_s)
+        iters.append(st.iterations)
+        state = out
+    return state, walls, iters
 
 
 def run_config(model: Model, state: State, linear: str, threads: int, steps: int) -> dict:
@@ -78,19 +128,14 @@ def run_config(model: Model, state: State, linear: str, threads: int, steps: int
     with threadpool_limits(threads):
         solver = FullSpaceSolver(model, settings=NewtonSettings(linear=linear))
         solver.step(state, State(state.x, state.v, state.t), dt)  # warm-up (kernel loading, PARDISO analysis)
-        totals: dict[str, float] = defaultdict(float)
-        _timed(solver, "gradient_hessian", totals, "assembly")
-        _timed(solver, "energy", totals, "line_search")
+        clock = _Clock()
+        totals = clock.totals
+        clock.wrap(solver, "gradient_hessian", "assembly")
+        clock.wrap(solver, "energy", "line_search")
         if linear != "cg":
-            _timed(solver.factoriser, "factorize", totals, "factorisation")
-            _timed(solver.factoriser, "solve", totals, "solve")
-        walls, iters = [], []
-        for _ in range(steps):
-            out = State(state.x, state.v, state.t)
-            st = solver.step(state, out, dt)
-            walls.append(st.wall_s)
-            iters.append(st.iterations)
-            state = out
+            clock.wrap(solver.factoriser, "factorize", "factorisation")
+            clock.wrap(solver.factoriser, "solve", "solve")
+        state, walls, iters = _stepped(solver, state, dt, steps)
     ms = {f"{p}_ms": 1e3 * totals[p] / steps for p in PARTS}
     step_ms = 1e3 * float(np.mean(walls))
     return {"linear": linear, "linear_solver": solver.info["linear_solver"], "threads": threads,
@@ -101,14 +146,91 @@ def run_config(model: Model, state: State, linear: str, threads: int, steps: int
             "other_ms": step_ms - sum(ms.values()), "x_end": state.x}
 
 
-def benchmark(cases: list[str], configs: list[str], steps: int, settle: int) -> list[dict]:
-    """One record per case x configuration (see the module doc); speedup = first configuration's step time /
-    this one's, in this run."""
+def reduced_setup(model: Model, frames: np.ndarray, r: int, cubature: int) -> tuple[np.ndarray, tuple]:
+    """The benchmark's basis W (n, 3, r): the affine fields and r - 12 POD modes of the displacement frames
+    (F, n, 3) [m], mass-orthonormal; and `cubature` optimised cubature tets on the frames' latent coordinates."""
+    W = pod_basis(frames, r, model.mass, affine_X=model.X)
+    return W, optimized_cubature(model, W, project(W, frames, model.mass), cubature)
+
+
+class _ReducedRun:
+    """One reduced configuration (`mode`, one of REDUCED) stepping from the projected `state` with its parts timed
+    (module doc): the fastest of `repeats` runs of each step from the same state (a step is deterministic) is kept,
+    its wall time and parts."""
+
+    def __init__(self, model: Model, state: State, W: np.ndarray, cub: tuple, mode: str) -> None:
+        if mode not in REDUCED:
+            raise ValueError(f"reduced configuration {mode!r}: expected one of {REDUCED}")
+        self.mode, self.dt = mode, model.scenario.time.dt
+        self.solver = solver = ReducedSolver(model, W, cub, contact_candidates=mode == "candidates")
+        self.state = solver.project(state)
+        solver.step(self.state, State(self.state.x, self.state.v, self.state.t), self.dt)  # warm-up (kernels)
+        self.clock, self.counts = _Clock(), []
+        for obj, method, part in ((solver.reduced, "elastic", "elastic"), (solver, "_point_terms", "points"),
+                                  (solver, "gradient_hessian", "reduction"), (solver, "newton_solve", "linear_solve"),
+                                  (solver, "energy", "line_search"), (solver, "_velocity_norm", "step_norm")):
+            self.clock.wrap(obj, method, part)
+        candidates = solver._candidates
+
+        def counted(q: np.ndarray, st: object) -> np.ndarray | None:
+            ids = candidates(q, st)
+            self.counts.append(solver.reduced.points.size if ids is None else ids.size)
+            return ids
+
+        solver._candidates = counted
+        self.walls: list[float] = []
+        self.iters: list[int] = []
+        self.parts = dict.fromkeys(REDUCED_PARTS, 0.0)
+
+    def step(self, repeats: int) -> None:
+        """One step, run `repeats` times from the same state; the fastest run's wall time [s] and parts kept."""
+        best = None
+        for _ in range(repeats):
+            before = dict(self.clock.totals)
+            out = State(self.state.x, self.state.v, self.state.t)
+            st = self.solver.step(self.state, out, self.dt)
+            if best is None or st.wall_s < best[0].wall_s:
+                best = st, out, {p: self.clock.totals[p] - before.get(p, 0.0) for p in REDUCED_PARTS}
+        st, self.state, parts = best
+        self.walls.append(st.wall_s)
+        self.iters.append(st.iterations)
+        for p in REDUCED_PARTS:
+            self.parts[p] += parts[p]
+
+    def record(self) -> dict:
+        """Per-step means [ms] of each part, candidates per evaluation, the end state."""
+        steps, rm = len(self.walls), self.solver.reduced
+        ms = {f"{p}_ms": 1e3 * self.parts[p] / steps for p in REDUCED_PARTS}
+        step_ms = 1e3 * float(np.mean(self.walls))
+        return {"reduced": self.mode, "r": rm.r, "cubature_tets": int(rm.cub_ids.size), "points": int(rm.points.size),
+                "candidates_mean": float(np.mean(self.counts)), "candidates_max": int(np.max(self.counts)),
+                "step_ms": step_ms, "step_ms_per_step": [1e3 * w for w in self.walls], "newton_iters": self.iters,
+                "iter_ms": 1e3 * float(np.sum(self.walls)) / max(1, sum(self.iters)), **ms,
+                "other_ms": step_ms - sum(ms.values()), "x_end": self.state.x}
+
+
+def run_reduced(model: Model, state: State, W: np.ndarray, cub: tuple, modes: list[str], steps: int,
+                repeats: int = 3) -> list[dict]:
+    """Step `steps` reduced steps from `state` (projected) in each configuration of `modes` (REDUCED), one
+    thread, the configurations interleaved step by step so that the machine's load falls on all alike, each step
+    the fastest of `repeats` runs (`_ReducedRun`); one record per configuration."""
+    with threadpool_limits(1):
+        runs = [_ReducedRun(model, state, W, cub, mode) for mode in modes]
+        for _ in range(steps):
+            for run in runs:
+                run.step(repeats)
+    return [run.record() for run in runs]
+
+
+def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, reduced: list[str] | None = None,
+              reduced_steps: int = 40, rank: int = 24, cubature: int = 60, repeats: int = 3) -> list[dict]:
+    """One record per case x configuration (see the module doc), the full-space ones then the reduced ones;
+    speedup = first configuration's step time / this one's, in this run."""
     records = []
     for name in cases:
         sc = resolve_scenario(name)
         model = build_model(sc, load_mesh(sc.mesh))
-        state, k = mid_contact_state(model, settle)
+        state, k, frames = mid_contact_state(model, settle)
         base_ms = base_x = None
         for cfg in configs:
             linear, _, threads = cfg.partition(":")
@@ -125,6 +247,26 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int) -> 
                   f"factor {r['factorisation_ms']:7.1f}  solve {r['solve_ms']:5.1f}  line search "
                   f"{r['line_search_ms']:5.1f}  other {r['other_ms']:5.1f} ms  |dx_end|/L {r['x_end_diff_rel']:.1e}",
                   flush=True)
+        if reduced:
+            W, cub = reduced_setup(model, frames, rank, cubature)
+            all_ms = all_x = None
+            for rec in run_reduced(model, state, W, cub, reduced, reduced_steps, repeats):
+                mode = rec["reduced"]
+                x_end = rec.pop("x_end")
+                if all_x is None:
+                    all_ms, all_x = rec["step_ms"], x_end
+                rec |= {"case": name, "mesh": sc.mesh.key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
+                        "from_step": k, "steps": reduced_steps, "speedup": base_ms / rec["step_ms"],
+                        "speedup_vs_first_reduced": all_ms / rec["step_ms"],
+                        "x_end_diff_rel": float(np.abs(x_end - all_x).max() / model.L)}
+                records.append(rec)
+                print(f"{name:24s} {'reduced:' + mode:22s} {rec['step_ms']:7.3f} ms/step ({rec['speedup']:5.0f}x, "
+                      f"{rec['speedup_vs_first_reduced']:4.2f}x)  it/step {np.mean(rec['newton_iters']):4.2f}  "
+                      f"candidates {rec['candidates_mean']:6.1f}/{rec['points']}  per step: elastic "
+                      f"{rec['elastic_ms']:5.3f}  points {rec['points_ms']:5.3f}  reduction {rec['reduction_ms']:5.3f}"
+                      f"  solve {rec['linear_solve_ms']:5.3f}  line search {rec['line_search_ms']:5.3f}  step norm "
+                      f"{rec['step_norm_ms']:5.3f}  other {rec['other_ms']:5.3f} ms  |dx_end|/L "
+                      f"{rec['x_end_diff_rel']:.1e}", flush=True)
     return records
 
 
@@ -135,12 +277,21 @@ def main() -> None:
                    help="linear:threads, linear in pardiso, superlu, direct, cg (default: %(default)s)")
     p.add_argument("--steps", type=int, default=5, help="timed steps per configuration")
     p.add_argument("--settle", type=int, default=4, help="steps after the first contact before timing")
+    p.add_argument("--reduced", nargs="*", default=REDUCED, choices=REDUCED,
+                   help="reduced configurations, none to skip them (default: %(default)s)")
+    p.add_argument("--reduced-steps", type=int, default=40, help="timed reduced steps per configuration")
+    p.add_argument("--r", type=int, default=24, help="reduced basis columns (12 affine + POD)")
+    p.add_argument("--cubature", type=int, default=60, help="optimised cubature tets of the reduced step")
+    p.add_argument("--repeats", type=int, default=3, help="runs of each reduced step, the fastest kept")
     p.add_argument("--out", default="out/bench_step.json")
     a = p.parse_args()
-    records = benchmark(a.cases, a.configs, a.steps, a.settle)
+    records = benchmark(a.cases, a.configs, a.steps, a.settle, a.reduced, a.reduced_steps, a.r, a.cubature,
+                        a.repeats)
     write_json_atomic(a.out, {"records": records, "provenance": provenance("cpu"),
                               "command": {"cases": a.cases, "configs": a.configs, "steps": a.steps,
-                                          "settle": a.settle}})
+                                          "settle": a.settle, "reduced": a.reduced,
+                                          "reduced_steps": a.reduced_steps, "r": a.r, "cubature": a.cubature,
+                                          "repeats": a.repeats}})
 
 
 if __name__ == "__main__":

@@ -223,3 +223,99 @@ def test_bases_represent_what_they_promise(block):
     W = pod_basis(frames, 12, model.mass, affine_X=X)
     rm = ReducedModel.build(model, W)
     assert np.abs(rm.decode(rm.project(u_rigid)) - u_rigid).max() < 1e-12 * model.L
+
+
+# ----- contact candidates: the point terms at the points that can be in contact -----------------------------------
+def candidate_scene(kind: str, mu: float = 0.2) -> Scenario:
+    """A block sliding down an incline (friction mu, none at 0) for 0.15 s under the penalty law (with contact
+    damping: `penalty_damped`) or the barrier law: the bottom face in contact, the rest of the surface away."""
+    short = TimeSpec(dt=0.01, duration=0.15)
+    if kind == "penalty":
+        return replace(incline(30.0, mu), time=short)
+    if kind == "penalty_damped":
+        return replace(incline(30.0, mu, contact=Contact(damping=30.0), effects=Effects(damping=True)), time=short,
+                       initial=Initial(clearance=0.001, rotation=(0.0, 0.0, -30.0), velocity=(0.0, -0.5, 0.0)))
+    return replace(incline(10.0, mu), contact=Contact(law="barrier"), time=short,
+                   initial=Initial(clearance=0.0005, rotation=(0.0, 0.0, -10.0), velocity=(0.0, -0.5, 0.0)))
+
+
+def counting_candidates(solver: ReducedSolver) -> list[int]:
+    """Record the number of candidate points of every point-term evaluation of `solver` (returned list)."""
+    counts, pick = [], solver._candidates
+
+    def counted(q, st):
+        ids = pick(q, st)
+        counts.append(ids.size)
+        return ids
+
+    solver._candidates = counted
+    return counts
+
+
+@pytest.mark.parametrize("kind, integrator, lag", [("penalty", "backward-euler", "start"),
+                                                    ("penalty_damped", "backward-euler", "start"),
+                                                    ("penalty_damped", "bdf2", "fixed-point"),
+                                                    ("barrier", "backward-euler", "start")])
+def test_contact_candidates_give_the_all_points_trajectory_to_round_off(block, kind, integrator, lag):
+    sc = candidate_scene(kind)
+    sc = replace(sc, time=replace(sc.time, integrator=integrator), contact=replace(sc.contact, lag=lag))
+    model = build_model(sc, block)
+    W = smooth_basis(model.X, 24, 0.002 * model.L)
+    runs = {}
+    for candidates in (False, True):
+        solver = ReducedSolver(model, W, contact_candidates=candidates)
+        counts = counting_candidates(solver) if candidates else []
+        runs[candidates] = simulate_reduced(model, solver) + (counts,)
+    (ref, ref_stats, _), (traj, stats, counts) = runs[False], runs[True]
+    assert all(s.converged for s in stats)
+    assert [s.iterations for s in stats] == [s.iterations for s in ref_stats]
+    assert np.abs(traj.x - ref.x).max() < 1e-12 * model.L
+    assert np.abs(traj.v - ref.v).max() < 1e-12 * model.L / 0.01
+    # the last Newton step's norm (a difference of nearly equal iterates) agrees to a millionth of the tolerance
+    assert max(abs(s.residual - r.residual) for s, r in zip(stats, ref_stats)) < 1e-6 * 1e-5 * model.L
+    # the selection leaves points out (the block's top and sides) and keeps the bottom face once in contact
+    p = model.points.size
+    assert max(counts) < 0.5 * p and np.mean(np.array(counts) > 0) > 0.5
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.3])
+@pytest.mark.parametrize("kind", ["penalty_damped", "barrier"])
+def test_point_terms_vanish_outside_the_candidates(block, kind, mu):
+    """Each point term evaluated at every sample point is exactly zero (energy, gradient, Hessian) at the points
+    `_candidates` leaves out, at states 3 mm (three barrier distances) around a sliding state (without friction,
+    the position alone decides: the barrier's and the penalty's reach)."""
+    model = build_model(candidate_scene(kind, mu), block)
+    solver = ReducedSolver(model, smooth_basis(model.X, 24, 0.002 * model.L), contact_candidates=True)
+    traj, _ = simulate_reduced(model, solver)
+    from frictionbench.solvers.licrom.reduced import ReducedState
+
+    rm, rng = solver.reduced, np.random.default_rng(4)
+    st = solver._begin(ReducedState(traj.q[-2], rm.project(traj.v[-2]), traj.t[-2]), 0.01)
+    for _ in range(5):
+        dq = rng.standard_normal(rm.r)
+        q = traj.q[-1] + 0.003 / np.abs(rm.Wp.reshape(-1, rm.r) @ dq).max() * dq
+        ids = solver._candidates(q, st)
+        out = np.setdiff1d(np.arange(rm.points.size), ids)
+        assert 0 < ids.size and 0 < out.size
+        x = rm.point_positions(q)
+        for term in solver.point_terms:
+            E_out = term.at_points(model, x[out], st.x_lag[out], st.x_bar[out], rm.area[out],
+                                   None if st.fn is None else st.fn[out], st.h_eff, 2)
+            assert E_out[0] == 0.0 and not E_out[1].any() and not E_out[2].any(), term.name
+            _, g, H = term.at_points(model, x, st.x_lag, st.x_bar, rm.area, st.fn, st.h_eff, 2)
+            assert not g[out].any() and not H[out].any(), term.name
+
+
+def test_the_step_benchmark_times_the_reduced_step_beside_the_full_one():
+    from frictionbench.bench.benchmark_step import REDUCED, REDUCED_PARTS, benchmark
+
+    records = benchmark(["hard/E1e9"], ["superlu:1"], steps=1, settle=1, reduced=REDUCED, reduced_steps=3,
+                        rank=12, cubature=20)
+    full, every, cand = records
+    assert every["reduced"] == "all-points" and cand["reduced"] == "candidates"
+    assert every["candidates_mean"] == every["points"] > cand["candidates_max"] > 0
+    for r in (every, cand):
+        parts = [r[f"{p}_ms"] for p in REDUCED_PARTS]
+        assert min(parts) > 0 and sum(parts) < r["step_ms"] and r["r"] == 12 and r["cubature_tets"] <= 20
+        assert r["speedup"] == pytest.approx(full["step_ms"] / r["step_ms"])
+    assert cand["x_end_diff_rel"] < 1e-12 and cand["newton_iters"] == every["newton_iters"]

@@ -54,33 +54,45 @@ def damped_points(x_lag, normal, offset) -> np.ndarray:
     return signed_distance(x_lag, normal, offset) < 0
 
 
-def _approach(x, x_lag, x_bar, normal, offset, h) -> np.ndarray:
-    """min(0, v.n) with v = (x - x_bar) / h (x_bar None: x_lag) at the damped points, 0 elsewhere, (p,) [m/s]."""
-    x_bar = x_lag if x_bar is None else x_bar
-    return np.minimum(0.0, (x - x_bar) @ normal / h) * damped_points(x_lag, normal, offset)
+def penalty_potential(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None, order: int = 2) -> Evaluation:
+    """The penalty law's energy, sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [damped]) [J],
+    v = (x - x_bar) / h (h the integrator's effective step, x_bar its lagged positions; None: x_lag, backward Euler);
+    its gradient A (-k_e c + k_d min(0, v.n) [damped]) n (p, 3) [N] (order >= 1) and Hessian blocks
+    A (k_e [c > 0] + k_d / h [damped, v.n < 0]) n n^T (p, 3, 3) [N/m] (order 2), from one pass over the points.
+    A part whose coefficient (k_e or k_d) is 0 is left out (it adds exact zeros)."""
+    zero = np.zeros(x.shape[0])
+    e = force = k = zero
+    if ke != 0.0:
+        phi = signed_distance(x, normal, offset)
+        c = np.maximum(0.0, -phi)
+        e = e + 0.5 * ke * c**2
+        if order >= 1:
+            force, k = force - ke * c, k + ke * (-phi > 0)
+    if kd != 0.0:
+        damped = damped_points(x_lag, normal, offset)
+        vraw = (x - (x_lag if x_bar is None else x_bar)) @ normal / h
+        vn = np.minimum(0.0, vraw) * damped  # min(0, v.n) at the damped points, 0 elsewhere [m/s]
+        e = e + 0.5 * h * kd * vn**2
+        if order >= 1:
+            force, k = force + kd * vn, k + kd / h * (damped & (vraw < 0))
+    E = float(area @ e)
+    g = (area * force)[:, None] * normal[None, :] if order >= 1 else None
+    return E, g, (area * k)[:, None, None] * np.outer(normal, normal)[None] if order == 2 else None
 
 
 def penalty_energy(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> float:
-    """Sum over points of A (1/2 k_e c^2 + h k_d / 2 max(0, -v.n)^2 [damped]), v = (x - x_bar) / h: h is the
-    integrator's effective step and x_bar its lagged positions (None: x_lag, backward Euler)."""
-    c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = _approach(x, x_lag, x_bar, normal, offset, h)
-    return float(area @ (0.5 * ke * c**2 + 0.5 * h * kd * vn**2))
+    """The energy of `penalty_potential` [J]."""
+    return penalty_potential(x, x_lag, area, normal, offset, ke, kd, h, x_bar, order=0)[0]
 
 
 def penalty_gradient(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
-    """Gradient of `penalty_energy`: A (-k_e c + k_d min(0, v.n) [damped]) n, (p, 3)."""
-    c = np.maximum(0.0, -signed_distance(x, normal, offset))
-    vn = _approach(x, x_lag, x_bar, normal, offset, h)
-    return (area * (-ke * c + kd * vn))[:, None] * normal[None, :]
+    """The gradient of `penalty_potential`, (p, 3) [N]."""
+    return penalty_potential(x, x_lag, area, normal, offset, ke, kd, h, x_bar, order=1)[1]
 
 
 def penalty_hessian(x, x_lag, area, normal, offset, ke, kd, h, x_bar=None) -> np.ndarray:
-    """Hessian blocks of `penalty_energy`: A (k_e [c > 0] + k_d / h [damped, v.n < 0]) n n^T, (p, 3, 3)."""
-    c = -signed_distance(x, normal, offset)
-    vn = (x - (x_lag if x_bar is None else x_bar)) @ normal / h
-    k = area * (ke * (c > 0) + kd / h * (damped_points(x_lag, normal, offset) & (vn < 0)))
-    return k[:, None, None] * np.outer(normal, normal)[None]
+    """The Hessian blocks of `penalty_potential`, (p, 3, 3) [N/m]."""
+    return penalty_potential(x, x_lag, area, normal, offset, ke, kd, h, x_bar, order=2)[2]
 
 
 def normal_pressure(x, v, normal, offset, ke, kd) -> np.ndarray:
@@ -147,9 +159,16 @@ class _Penalty(PointTerm):
 
     def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
-        args = (x, x_lag, area, model.plane_normal, model.plane_offset, self.ke(model), self.kd(model), h, x_bar)
-        return (penalty_energy(*args), penalty_gradient(*args) if order >= 1 else None,
-                penalty_hessian(*args) if order == 2 else None)
+        return penalty_potential(x, x_lag, area, model.plane_normal, model.plane_offset, self.ke(model),
+                                 self.kd(model), h, x_bar, order)
+
+    def reach(self, model: Model) -> float:
+        """The stiffness part acts below the plane (c > 0) only; without it, nowhere through the position."""
+        return 0.0 if self.ke(model) > 0.0 else -np.inf
+
+    def lagged_support(self, model: Model, x_lag: np.ndarray, fn: np.ndarray | None) -> np.ndarray | None:
+        """The damping part acts at the damped points (`damped_points` of the gate positions x_lag) only."""
+        return damped_points(x_lag, model.plane_normal, model.plane_offset) if self.kd(model) > 0.0 else None
 
 
 @register
@@ -183,6 +202,10 @@ class BarrierContact(PointTerm):
         g = (kA * barrier_d1(phi, dhat))[:, None] * n if order >= 1 else None
         H = (kA * barrier_d2(phi, dhat))[:, None, None] * np.outer(n, n) if order == 2 else None
         return E, g, H
+
+    def reach(self, model: Model) -> float:
+        """b(d) and its derivatives vanish from the activation distance dhat on."""
+        return model.contact.barrier_distance
 
     def max_step(self, model: Model, x: np.ndarray, dx: np.ndarray) -> float:
         """The barrier is infinite on the plane: no contact point may cross it (`solvers.newton.feasible_step`)."""

@@ -35,35 +35,43 @@ def slip_velocity(x, x_prev, normal, h) -> np.ndarray:
     return v - np.outer(v @ normal, normal)
 
 
-def friction_energy(x, x_prev, area, fn, normal, mu, kf, h) -> float:
-    """D = sum A h mu f_n f0(|v_t|) [J]; points with f_n = 0 contribute nothing."""
+def friction_potential(x, x_prev, area, fn, normal, mu, kf, h, order: int = 2) -> Evaluation:
+    """D = sum A h mu f_n f0(|v_t|) [J] (points with f_n = 0 contribute nothing); its gradient
+    dD/dx = A mu f_n (f1(s)/s) v_t (p, 3) [N] (order >= 1; the friction force is its negative) and PSD Hessian
+    blocks (p, 3, 3) [N/m] (order 2): A k_f / h T below eps_v, A mu f_n / (h s) (T - t t^T) above. One pass: the
+    slip velocity and eps_v are computed once for all three."""
     vt = slip_velocity(x, x_prev, normal, h)
     s = np.linalg.norm(vt, axis=1)
     eps = np.maximum(mu * fn / kf, 1e-300)
-    return float(np.sum(area * h * mu * fn * f0(s, eps)))
-
-
-def friction_gradient(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
-    """dD/dx = A mu f_n (f1(s)/s) v_t, (p, 3) [N] (the friction force is its negative)."""
-    vt = slip_velocity(x, x_prev, normal, h)
-    s = np.linalg.norm(vt, axis=1)
-    eps = np.maximum(mu * fn / kf, 1e-300)
-    return (area * mu * fn * f1_over_s(s, eps))[:, None] * vt
-
-
-def friction_hessian(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
-    """Hessian blocks (p, 3, 3): A k_f / h T below eps_v; A mu f_n / (h s) (T - t t^T) above (PSD)."""
-    vt = slip_velocity(x, x_prev, normal, h)
-    s = np.linalg.norm(vt, axis=1)
-    eps = np.maximum(mu * fn / kf, 1e-300)
+    E = float(np.sum(area * h * mu * fn * f0(s, eps)))
+    if order == 0:
+        return E, None, None
+    g = (area * mu * fn * f1_over_s(s, eps))[:, None] * vt
+    if order == 1:
+        return E, g, None
     T = np.eye(3) - np.outer(normal, normal)
     t = vt / np.maximum(s, 1e-300)[:, None]
     slow = s < eps
     k_slow = area * mu * fn / eps / h
     k_fast = area * mu * fn / (h * np.maximum(s, 1e-300))
     H = np.where(slow[:, None, None], k_slow[:, None, None] * T,
-                 k_fast[:, None, None] * (T[None] - np.einsum("pi,pj->pij", t, t)))
-    return H * (fn > 0)[:, None, None]
+                 k_fast[:, None, None] * (T[None] - t[:, :, None] * t[:, None, :]))
+    return E, g, H * (fn > 0)[:, None, None]
+
+
+def friction_energy(x, x_prev, area, fn, normal, mu, kf, h) -> float:
+    """The energy D of `friction_potential` [J]."""
+    return friction_potential(x, x_prev, area, fn, normal, mu, kf, h, order=0)[0]
+
+
+def friction_gradient(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
+    """The gradient dD/dx of `friction_potential`, (p, 3) [N]."""
+    return friction_potential(x, x_prev, area, fn, normal, mu, kf, h, order=1)[1]
+
+
+def friction_hessian(x, x_prev, area, fn, normal, mu, kf, h) -> np.ndarray:
+    """The Hessian blocks of `friction_potential`, (p, 3, 3) [N/m]."""
+    return friction_potential(x, x_prev, area, fn, normal, mu, kf, h, order=2)[2]
 
 
 def creep_speed(area: np.ndarray, fn: np.ndarray, mu: float, kf: float, load: float) -> float:
@@ -108,6 +116,13 @@ class Friction(PointTerm):
     def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
                   fn: np.ndarray | None, h: float, order: int) -> Evaluation:
         """The potential with the integrator's velocity (x - x_bar) / h, h its effective step."""
-        args = (x, x_bar, area, fn, model.plane_normal, model.friction, model.contact.friction_stiffness, h)
-        return (friction_energy(*args), friction_gradient(*args) if order >= 1 else None,
-                friction_hessian(*args) if order == 2 else None)
+        return friction_potential(x, x_bar, area, fn, model.plane_normal, model.friction,
+                                  model.contact.friction_stiffness, h, order)
+
+    def reach(self, model: Model) -> float:
+        """Friction acts through the lagged pressure alone, never through the position."""
+        return -np.inf
+
+    def lagged_support(self, model: Model, x_lag: np.ndarray, fn: np.ndarray | None) -> np.ndarray | None:
+        """The points with a positive lagged normal pressure (f_n = 0 zeroes the energy, gradient and Hessian)."""
+        return fn > 0.0

@@ -112,6 +112,19 @@ class PointTerm(Term):
         (p, 3) [m] with start-of-step positions x_lag and the integrator's x_bar (p, 3) [m] (velocity
         (x - x_bar) / h), area weights area (p,) [m^2], lagged pressure fn (p,), h the effective step h_eff [s]."""
 
+    def reach(self, model: Model) -> float:
+        """The signed distance to the plane [m] below which the term can be nonzero at a point through the point's
+        own position: -inf, never; +inf (the default), at any distance. With `lagged_support` it bounds the term's
+        support, which lets a backend evaluate it at the candidate points alone (`solvers.licrom.reduced`)."""
+        return np.inf
+
+    def lagged_support(self, model: Model, x_lag: np.ndarray, fn: np.ndarray | None) -> np.ndarray | None:
+        """The points (p,) bool at which the term can be nonzero whatever their position, from what the step
+        lags: the start-of-step (damping-gate) positions x_lag (p, 3) [m] and the normal pressure fn (p,) [Pa];
+        None (the default): none. At a point neither below `reach` nor in this set, the term's energy, gradient
+        and Hessian are exactly zero."""
+        return None
+
     def _at(self, model: Model, step: StepData, x: np.ndarray, order: int) -> Evaluation:
         p = model.points
         return self.at_points(model, x[p], step.x_lag[p], step.x_bar[p], model.area, step.fn, step.h_eff, order)
