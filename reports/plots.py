@@ -19,7 +19,16 @@ from frictionbench.reports.interactive import text
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
            "#17becf")
 
-#: Marker symbols, one per solver family in the frontier (colours repeat after ten variants, symbols tell apart).
+#: Colour ramps of the frontier, one per solver family (in order of the families' names), its variants taking the
+#: shades in turn, dark to light: a family keeps its own hue however many variants it has.
+FAMILY_RAMPS = (("#08306b", "#08519c", "#2171b5", "#4292c6", "#6baed6", "#9ecae1", "#c6dbef", "#deebf7"),  # blues
+                ("#7f2704", "#a63603", "#d94801", "#f16913", "#fd8d3c", "#fdae6b", "#fdd0a2", "#fee6ce"),  # oranges
+                ("#00441b", "#006d2c", "#238b45", "#41ab5d", "#74c476", "#a1d99b", "#c7e9c0", "#e5f5e0"),  # greens
+                ("#3f007d", "#54278f", "#6a51a3", "#807dba", "#9e9ac8", "#bcbddc", "#dadaeb", "#efedf5"),  # purples
+                ("#67000d", "#a50f15", "#cb181d", "#ef3b2c", "#fb6a4a", "#fc9272", "#fcbba1", "#fee0d2"),  # reds
+                ("#000000", "#252525", "#525252", "#737373", "#969696", "#bdbdbd", "#d9d9d9", "#f0f0f0"))  # greys
+
+#: Marker symbols, one per solver family in the frontier (with its colour ramp, tells the families apart).
 SYMBOLS = ("circle", "square", "diamond", "triangle-up", "cross", "x", "star", "hexagon", "pentagon",
            "triangle-down")
 
@@ -112,11 +121,15 @@ def frontier_figure(frame: pd.DataFrame) -> dict[str, object]:
     data: list[dict[str, object]] = []
     runs = f[~f["ladder"]]
     families = sorted(runs["family"].unique())
-    for n, (label, g) in enumerate(runs.groupby("label", sort=True)):
-        symbol = SYMBOLS[families.index(g["family"].iloc[0]) % len(SYMBOLS)]
+    shade: dict[str, int] = {}
+    for label, g in runs.groupby("label", sort=True):
+        family = g["family"].iloc[0]
+        k = families.index(family)
+        ramp = FAMILY_RAMPS[k % len(FAMILY_RAMPS)]
+        shade[family] = shade.get(family, -1) + 1
         data.append({"type": "scatter", "mode": "markers", "name": text(label), "x": g["x"].tolist(),
-                     "y": g["y"].tolist(), "marker": {"size": 9, "color": PALETTE[n % len(PALETTE)],
-                                                      "symbol": symbol},
+                     "y": g["y"].tolist(), "marker": {"size": 9, "color": ramp[shade[family] % len(ramp)],
+                                "symbol": SYMBOLS[k % len(SYMBOLS)], "line": {"width": 0.5, "color": "#333333"}},
                      "hovertext": [_hover(label, s, {cols.error: y, cols.cost: x})
                                    for s, x, y in zip(g["scenario"], g["x"], g["y"])],
                      "hoverinfo": "text"})

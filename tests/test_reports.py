@@ -33,7 +33,7 @@ from frictionbench.reports.export import export_vtu_series
 from frictionbench.reports.headline import headline_table
 from frictionbench.reports.html import ScenarioRuns, write_report_html
 from frictionbench.reports.interactive import plot_div, plotly_js, script_json, typed_array
-from frictionbench.reports.plots import pareto_front
+from frictionbench.reports.plots import FAMILY_RAMPS, frontier_figure, pareto_front
 from frictionbench.reports.viewer import ViewerBudget, decimate_surface, viewer_figure
 from frictionbench.scenarios.meshes import bbox_diagonal
 from frictionbench.scenarios.model import Material, Plane
@@ -141,6 +141,20 @@ def test_pareto_front() -> None:
     np.testing.assert_array_equal(pareto_front(time, error), [0, 1, 3])
     speedup = 1.0 / time
     np.testing.assert_array_equal(pareto_front(speedup, error, x_higher_is_better=True), [0, 1, 3])
+
+
+def test_frontier_gives_each_solver_family_its_own_hue() -> None:
+    """Every variant of a family takes a shade of the family's ramp, so no colour is shared between families (the
+    peer engine's seven variants beside the full-space ones, say)."""
+    families = {"full": 7, "newton-vbd": 7}
+    frame = pd.DataFrame([{"solver": fam, "variant": f"v{k}", "scenario": "s", "err_truth": 0.1 * (k + 1),
+                           "wall_s_per_sim_s": 1.0 + k} for fam, n in families.items() for k in range(n)])
+    traces = {t["name"]: t for t in frontier_figure(frame)["data"] if t.get("mode") == "markers"}
+    colours = {fam: {traces[f"{fam}/v{k}"]["marker"]["color"] for k in range(n)} for fam, n in families.items()}
+    assert colours["full"] <= set(FAMILY_RAMPS[0]) and colours["newton-vbd"] <= set(FAMILY_RAMPS[1])
+    assert not colours["full"] & colours["newton-vbd"]
+    assert len(colours["newton-vbd"]) == 7  # its variants tell apart too
+    assert {traces["full/v0"]["marker"]["symbol"]} != {traces["newton-vbd/v0"]["marker"]["symbol"]}
 
 
 class _TagChecker(HTMLParser):
