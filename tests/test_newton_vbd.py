@@ -15,10 +15,11 @@ from frictionbench.scenarios.model import Contact, Initial, Material, MeshSpec, 
 from frictionbench.solvers import newton_vbd, registry
 from frictionbench.solvers.full.solver import FullSpaceSolver
 from frictionbench.solvers.full.static import static_equilibrium
-from frictionbench.solvers.model import build_model
+from frictionbench.solvers.model import build_model, initial_state
 from frictionbench.solvers.newton_vbd import NewtonVBD, newton_damping, newton_material, newton_model
 from frictionbench.solvers.physics.material import elastic_gradient, shape_matrices, snh_parameters
 from frictionbench.solvers.physics.viscosity import viscous_gradient
+from frictionbench.solvers.scene import State
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.warp_runtime import init_warp
 from tests.scenes import G, incline
@@ -188,3 +189,20 @@ def test_registered_through_the_entry_point_and_unavailable_without_newton(monke
     with pytest.raises(registry.SolverUnavailable, match="newton"):
         registry.get_solver("newton-vbd")
     assert newton_vbd.NewtonVBD.requires == ("newton",)
+
+
+def test_deterministic_and_independent_of_the_warm_up_step(block):
+    """The harness times a warm-up step on a throw-away state first: it must not change the run."""
+    model = build_model(replace(incline(30.0, 0.2), time=TimeSpec(dt=0.01, duration=0.1)), block)
+
+    def run(warm_up: bool) -> np.ndarray:
+        solver = NewtonVBD(substeps=2)
+        solver.setup(model)
+        if warm_up:
+            start = initial_state(model)
+            solver.step(State(start.x + 0.01, start.v), State(start.x, start.v), 0.01)
+        return simulate(model, solver)[0].x
+
+    first = run(False)
+    assert np.array_equal(first, run(False))
+    assert np.array_equal(first, run(True))
