@@ -80,3 +80,12 @@ def assert_ranges_match_one_launch(solver, kernel, inputs: list, offsets: dict[i
 def com_series(traj, mass):
     """Centre of mass per frame, (F, 3) [m]."""
     return np.einsum("n,fnk->fk", mass, traj.x) / mass.sum()
+
+
+def free_flight(duration: float) -> Scenario:
+    """The block spinning and drifting in free flight (no plane, no gravity, soft: E 20 kPa), stepped by 10 ms for
+    `duration` [s]: momentum is exact, energy may only fall."""
+    return Scenario(name="free_flight", mesh=MeshSpec("block", "coarse"), plane=None, gravity=(0.0, 0.0, 0.0),
+                    material=Material(youngs_modulus=2e4),
+                    initial=Initial(velocity=(0.3, -0.1, 0.2), angular_velocity=(1.0, 4.0, -2.0)),
+                    time=TimeSpec(dt=0.01, duration=duration))

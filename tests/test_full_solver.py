@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from frictionbench.scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.model import State, build_model, initial_state
 from frictionbench.solvers.physics import contact as pc
@@ -16,7 +16,7 @@ from frictionbench.solvers.physics import material as pm
 from frictionbench.solvers.physics.terms import StepData
 from frictionbench.solvers.simulate import simulate
 
-from scenes import G, com_series, incline
+from scenes import G, com_series, free_flight, incline
 
 def test_kernels_match_numpy_reference(block):
     sc = incline(30.0, 0.4, contact=Contact(damping=30.0), effects=Effects(damping=True))
@@ -74,11 +74,7 @@ def test_free_fall_matches_backward_euler_closed_form(block):
 
 
 def test_free_flight_conserves_momentum_and_dissipates_energy(block):
-    sc = Scenario(name="free_flight", mesh=MeshSpec("block", "coarse"), plane=None, gravity=(0.0, 0.0, 0.0),
-                  material=Material(youngs_modulus=2e4),
-                  initial=Initial(velocity=(0.3, -0.1, 0.2), angular_velocity=(1.0, 4.0, -2.0)),
-                  time=TimeSpec(dt=0.01, duration=0.4))
-    model = build_model(sc, block)
+    model = build_model(free_flight(0.4), block)
     assert "gravity" not in model.terms
     traj, _ = simulate(model, FullSpaceSolver(model, settings=NewtonSettings(tol=1e-9)))
     p = np.einsum("n,fnk->fk", model.mass, traj.v)

@@ -11,7 +11,7 @@ import pytest
 import warp as wp
 
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import Contact, Initial, Material, MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.model import Contact, Material, MeshSpec, Scenario, TimeSpec
 from frictionbench.solvers import newton_vbd, registry
 from frictionbench.solvers.full.solver import FullSpaceSolver
 from frictionbench.solvers.full.static import static_equilibrium
@@ -22,7 +22,7 @@ from frictionbench.solvers.physics.viscosity import viscous_gradient
 from frictionbench.solvers.scene import State
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.warp_runtime import init_warp
-from tests.scenes import G, incline
+from scenes import G, free_flight, incline
 
 init_warp()
 # Newton's own per-vertex tet force (a private module: the only place its energy can be evaluated alone)
@@ -114,11 +114,7 @@ def test_free_fall_is_backward_euler(block):
 
 
 def test_free_flight_conserves_momentum(block):
-    sc = Scenario(name="flight", mesh=MeshSpec("block", "coarse"), plane=None, gravity=(0.0, 0.0, 0.0),
-                  material=Material(youngs_modulus=2e4),
-                  initial=Initial(velocity=(0.3, -0.1, 0.2), angular_velocity=(1.0, 4.0, -2.0)),
-                  time=TimeSpec(dt=0.01, duration=0.2))
-    model = build_model(sc, block)
+    model = build_model(free_flight(0.2), block)
 
     def drift(iterations: int) -> float:
         solver = NewtonVBD(iterations=iterations)
