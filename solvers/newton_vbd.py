@@ -78,15 +78,16 @@ def newton_model(model: Model, device: str = "cpu", fixed: np.ndarray | None = N
         for i in np.flatnonzero(fixed):
             builder.particle_mass[i] = 0.0
             builder.particle_flags[i] = builder.particle_flags[i] & ~newton.ParticleFlags.ACTIVE
-    ke, kd = contact_parameters(model) if model.plane_normal is not None else (0.0, 0.0)
+    soft_contact = (0.0, 0.0, 0.0)
     if model.plane_normal is not None:
+        ke, kd = contact_parameters(model)
         n = model.plane_normal
-        cfg = newton.ModelBuilder.ShapeConfig(ke=ke, kd=kd, mu=model.friction)
         builder.add_shape_plane(plane=(float(n[0]), float(n[1]), float(n[2]), -model.plane_offset), width=0.0,
-                                length=0.0, cfg=cfg)
+                                length=0.0, cfg=newton.ModelBuilder.ShapeConfig(ke=ke, kd=kd, mu=model.friction))
+        soft_contact = (ke, kd, model.friction)
     builder.color()
     nm = builder.finalize(device=device)
-    nm.soft_contact_ke, nm.soft_contact_kd, nm.soft_contact_mu = ke, kd, model.friction
+    nm.soft_contact_ke, nm.soft_contact_kd, nm.soft_contact_mu = soft_contact
     return nm
 
 
