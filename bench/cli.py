@@ -353,8 +353,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
     s.add_argument("--suite", required=True)
     s.add_argument("--solvers", default=None, help="comma list of variant sets (or solver names) besides the "
-                   "reference (default: the suite's set in bench.variants.SUITE_DEFAULTS, else every set of "
-                   "frictionbench.bench.variants; the reference's name for the reference only)")
+                   "reference (default: the suite's set in bench.variants.SUITE_DEFAULTS, else bench.variants.DEFAULT; "
+                   "the reference's name for the reference only)")
     s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--only", help="run only the members whose names match this shell pattern, e.g. 'paper/cheese_*'")
     s.add_argument("--jobs", type=jobs_arg, help=JOBS_HELP)
