@@ -79,6 +79,13 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # the paper's projected-gradient scheme, iterated to convergence (hundreds of iterations a step, 0.2-0.5 s a
     # step on the coarse cheese): on demand, and in the hard set; the paper set runs it on the optimised cubature
     "licrom-pg": [Variant("licrom", LICROM_AFFINE | {"scheme": "projected_gradient"}, label="affine-r24-pg")],
+    # LiCROM's online integrator as released: the projected gradient at a fixed 3 iterations a step, the latent
+    # velocity scaled by 0.99 before each step; on demand, beside ours (issue 22, point 4)
+    "licrom-released": [Variant("licrom", LICROM_AFFINE | {"scheme": "projected_gradient", "iterations": 3,
+                                                          "velocity_scale": 0.99}, label="affine-r24-released"),
+                        Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60", "scheme": "projected_gradient",
+                                                          "iterations": 3, "velocity_scale": 0.99},
+                                label="affine-r24-cub60-released")],
     "pod": [Variant("pod", {"r": 20}, label="r20"),
             Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt", model="r20")],
     "affine": [Variant("affine", {}, label="affine12")],

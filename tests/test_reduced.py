@@ -14,6 +14,7 @@ from frictionbench.solvers.baselines import affine_basis, full_basis, pod_basis,
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.licrom.cubature import cubature_force_error, optimized_cubature, uniform_cubature
+from frictionbench.solvers.licrom.plugins import Affine
 from frictionbench.solvers.licrom.reduced import ReducedModel, ReducedSolver
 from frictionbench.solvers.model import build_model, initial_state, rotation_matrix
 from frictionbench.solvers.physics import contact as pc
@@ -21,7 +22,7 @@ from frictionbench.solvers.physics import friction as pf
 from frictionbench.solvers.physics import material as pm
 from frictionbench.solvers.simulate import simulate
 
-from scenes import G, com_series, incline
+from scenes import G, com_series, free_flight, incline
 
 
 def simulate_reduced(model, solver):
@@ -202,6 +203,28 @@ def test_projected_gradient_free_fall_matches_closed_form(block):
     bound = N * (N + 1) / 2 * (1 - alpha) / alpha * tol * model.L * h
     assert np.abs(traj.x[:, :, 1] - y_exact).max() < bound
     assert np.abs(traj.x[:, :, [0, 2]] - traj.x[0, :, [0, 2]].T[None]).max() < 1e-12 * model.L
+
+
+def test_released_licrom_scales_velocity_and_runs_a_fixed_iteration_count(block):
+    """LiCROM's released integrator: the latent velocity times 0.99 before each step, so that in free flight (no
+    external force; the affine basis holds every translation) the momentum falls by exactly 0.99 a step; and the
+    projected gradient at a fixed 3 iterations, each step counted converged (never retried)."""
+    model = build_model(replace(free_flight(0.1), time=TimeSpec(dt=0.01, duration=0.1)), block)
+    solver = ReducedSolver(model, affine_basis(model.X), tol=1e-10, velocity_scale=0.99)
+    traj, _ = simulate_reduced(model, solver)
+    p = np.einsum("n,fnk->fk", model.mass, traj.v)
+    n = np.arange(traj.n_frames)
+    np.testing.assert_allclose(p, 0.99 ** n[:, None] * p[0], rtol=1e-6, atol=1e-9 * np.abs(p[0]).max())
+    fixed = ReducedSolver(model, affine_basis(model.X), cubature=uniform_cubature(model, 40),
+                          scheme="projected_gradient", alpha=0.1, max_iter=3, fixed_iterations=True)
+    _, stats = simulate_reduced(model, fixed)
+    assert all(s.iterations == 3 and s.converged and s.retries == 0 for s in stats)
+    with pytest.raises(ValueError, match="velocity_scale"):
+        ReducedSolver(model, affine_basis(model.X), velocity_scale=1.5)
+    with pytest.raises(ValueError, match="fixed iteration count"):
+        ReducedSolver(model, affine_basis(model.X), fixed_iterations=True)
+    with pytest.raises(ValueError, match="iterations = 0"):
+        Affine(iterations=0, scheme="projected_gradient").setup(model)
 
 
 # ----- baselines ------------------------------------------------------------------------------------------------

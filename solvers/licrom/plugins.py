@@ -62,8 +62,11 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
 class _Reduced(Solver):
     """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
     Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
-    `projected_gradient`), seed. Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with
-    either scheme."""
+    `projected_gradient`), seed; iterations: None (iterate to convergence) or, with the projected gradient, a fixed
+    count per step with no convergence test; velocity_scale: the latent velocity's factor before each step (1: none).
+    LiCROM's released integrator is the projected gradient at 3 iterations and 0.99 (`bench.variants`,
+    `licrom-released`). Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with either
+    scheme."""
 
     integrators = tuple(INTEGRATORS)
 
@@ -76,8 +79,14 @@ class _Reduced(Solver):
         W, stored_cubature, info = self.basis_of(model)
         p = self.params
         cub, used = _cubature(model, W, p["cubature"], p["seed"], stored_cubature)
+        fixed = p["iterations"] is not None
+        if fixed and (isinstance(p["iterations"], bool) or not isinstance(p["iterations"], int)
+                      or p["iterations"] < 1):
+            raise ValueError(f"solver {self.name!r}: iterations = {p['iterations']!r}: expected None or a positive "
+                             "integer")
         solver = ReducedSolver(model, W, cub, scheme=p["scheme"], device=self.device, seed=p["seed"],
-                               name=self.name)
+                               name=self.name, fixed_iterations=fixed, velocity_scale=float(p["velocity_scale"]),
+                               **({"max_iter": p["iterations"]} if fixed else {}))
         self.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0]))}
         if p["scheme"] == "projected_gradient":
             # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
@@ -102,7 +111,7 @@ class _Reduced(Solver):
         return super().describe() | self.info
 
 
-_COMMON = {"cubature": "all", "scheme": "newton", "seed": 0}
+_COMMON = {"cubature": "all", "scheme": "newton", "seed": 0, "iterations": None, "velocity_scale": 1.0}
 
 
 # ----- affine ------------------------------------------------------------------------------------------------

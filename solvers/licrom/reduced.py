@@ -308,7 +308,10 @@ class ReducedSolver:
     tol: convergence |W dq|_inf / h < tol * L [1/s]; max_iter: iterations per step; alpha: the
     projected-gradient step size [-]; contact_samples, seed: contact point subsampling (None keeps all);
     armijo, max_halvings: Newton line search; contact_candidates: evaluate the point terms at the candidate
-    points only (`_candidates`; equal to all points to round-off), False: at every sample point.
+    points only (`_candidates`; equal to all points to round-off), False: at every sample point;
+    fixed_iterations: the projected gradient runs exactly max_iter iterations a step with no convergence test
+    (the step counts as converged, as LiCROM's released integrator steps); velocity_scale [-]: the latent velocity
+    qdot^n is scaled by it before each step (1: none; LiCROM's released integrator damps by 0.99 a step).
     """
 
     name = "licrom"
@@ -316,9 +319,15 @@ class ReducedSolver:
     def __init__(self, model: Model, W: np.ndarray, cubature: Cubature | None = None, scheme: str = "newton",
                  device: str = "cpu", tol: float = 1e-5, max_iter: int = 50, alpha: float = 1.0,
                  contact_samples: int | None = None, seed: int = 0, name: str | None = None,
-                 armijo: float = 1e-4, max_halvings: int = 40, contact_candidates: bool = True) -> None:
+                 armijo: float = 1e-4, max_halvings: int = 40, contact_candidates: bool = True,
+                 fixed_iterations: bool = False, velocity_scale: float = 1.0) -> None:
         if scheme not in ("newton", "projected_gradient"):
             raise ValueError(f"scheme = {scheme!r}: expected 'newton' or 'projected_gradient'")
+        if fixed_iterations and scheme != "projected_gradient":
+            raise ValueError(f"scheme = {scheme!r}: a fixed iteration count is the projected gradient's only")
+        if not 0.0 < velocity_scale <= 1.0:
+            raise ValueError(f"velocity_scale = {velocity_scale!r}: expected a factor in (0, 1]")
+        self.fixed_iterations, self.velocity_scale = fixed_iterations, velocity_scale
         K.init_taichi(device)
         self.model = model
         self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed)
@@ -509,9 +518,9 @@ class ReducedSolver:
             dq *= problem.max_step(q, dq)
             q = q + dq
             residual = self._velocity_norm(dq, st.h_eff)
-            if residual < tol_v:
+            if residual < tol_v and not self.fixed_iterations:
                 return NewtonResult(q, it, residual, 0, 0, 0, True)
-        return NewtonResult(q, it, residual, 0, 0, 0, False)
+        return NewtonResult(q, it, residual, 0, 0, 0, self.fixed_iterations)
 
     def projected_gradient_alpha_limit(self, state: State, dt: float) -> float:
         """Largest stable step size alpha of the projected-gradient scheme at `state` (projected to the subspace):
@@ -532,7 +541,7 @@ class ReducedSolver:
         t0 = time.perf_counter()
         if state_in.q is None:
             state_in = self.project(state_in)
-        latent = ReducedState(state_in.q, state_in.qdot, state_in.t)
+        latent = ReducedState(state_in.q, self.velocity_scale * state_in.qdot, state_in.t)
         prev = self.integrator.previous(state_in, dt)
         previous = None if prev is None or prev.q is None else ReducedState(prev.q, prev.qdot, prev.t)
         step = _LaggedStep(self, latent, dt, previous)
