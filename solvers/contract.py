@@ -23,13 +23,24 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from frictionbench.solvers.integrators import BackwardEuler
 from frictionbench.solvers.model import Model, State
 from frictionbench.solvers.step_stats import StepStats
 
 
 class SolverParameterError(ValueError):
     """A solver was given a parameter it does not declare."""
+
+
+#: The largest count (of iterations, substeps) a solver parameter may ask for per step.
+MAX_COUNT = 100_000
+
+
+def check_count(solver: str, key: str, value: Any) -> int:
+    """`value` of the parameter `key` of `solver` as a count per step: an integer from 1 to MAX_COUNT, else an
+    error naming the solver, the parameter and the value."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_COUNT:
+        raise ValueError(f"solver {solver!r}: {key} = {value!r}: expected an integer from 1 to {MAX_COUNT}")
+    return value
 
 
 class Solver(ABC):

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from frictionbench.solvers.contract import Solver
+from frictionbench.solvers.contract import Solver, check_count
 from frictionbench.solvers.physics.material import lame_parameters
 from frictionbench.solvers.scene import Model, State
 from frictionbench.solvers.step_stats import StepStats
@@ -103,9 +103,7 @@ class NewtonVBD(Solver):
     def __init__(self, device: str = "cpu", **params: Any) -> None:
         super().__init__(device, **params)
         for key in ("substeps", "iterations"):
-            value = self.params[key]
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100_000:
-                raise ValueError(f"solver {self.name!r}: {key} = {value!r}: must be an integer from 1 to 100000")
+            check_count(self.name, key, self.params[key])
         eps = self.params["friction_epsilon"]
         if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps > 0.0):
             raise ValueError(f"solver {self.name!r}: friction_epsilon = {eps!r}: must be a positive number [m/s]")

@@ -21,7 +21,7 @@ import numpy as np
 
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.solvers.baselines import affine_basis, pod_basis, project
-from frictionbench.solvers.contract import Solver
+from frictionbench.solvers.contract import Solver, check_count
 from frictionbench.solvers.integrators import INTEGRATORS
 from frictionbench.solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
 from frictionbench.solvers.licrom.reduced import ReducedSolver
@@ -80,10 +80,8 @@ class _Reduced(Solver):
         p = self.params
         cub, used = _cubature(model, W, p["cubature"], p["seed"], stored_cubature)
         fixed = p["iterations"] is not None
-        if fixed and (isinstance(p["iterations"], bool) or not isinstance(p["iterations"], int)
-                      or p["iterations"] < 1):
-            raise ValueError(f"solver {self.name!r}: iterations = {p['iterations']!r}: expected None or a positive "
-                             "integer")
+        if fixed:
+            check_count(self.name, "iterations", p["iterations"])
         solver = ReducedSolver(model, W, cub, scheme=p["scheme"], device=self.device, seed=p["seed"],
                                name=self.name, fixed_iterations=fixed, velocity_scale=float(p["velocity_scale"]),
                                **({"max_iter": p["iterations"]} if fixed else {}))
