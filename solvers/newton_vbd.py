@@ -155,6 +155,7 @@ class NewtonVBD(Solver):
         """The parameters, and Newton's version and the contact stiffness and damping it was given."""
         import newton
 
-        ke, kd = contact_parameters(self.model) if self.model.plane_normal is not None else (0.0, 0.0)
-        return super().describe() | {"newton_version": newton.__version__, "newton_contact_ke": ke,
-                                     "newton_contact_kd": kd, "newton_k_damp": newton_damping(self.model.viscosity)}
+        return super().describe() | {"newton_version": newton.__version__,
+                                     "newton_contact_ke": float(self.nm.soft_contact_ke),
+                                     "newton_contact_kd": float(self.nm.soft_contact_kd),
+                                     "newton_k_damp": newton_damping(self.model.viscosity)}

@@ -22,7 +22,7 @@ from frictionbench.solvers.physics.viscosity import viscous_gradient
 from frictionbench.solvers.scene import State
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.warp_runtime import init_warp
-from scenes import G, free_flight, incline
+from scenes import G, com_series, free_flight, incline
 
 init_warp()
 # Newton's own per-vertex tet force (a private module: the only place its energy can be evaluated alone)
@@ -136,7 +136,7 @@ def _slide(model, solver) -> tuple[float, float]:
     traj, _ = simulate(model, solver)
     normal = model.plane_normal
     downhill = np.array([normal[1], -normal[0], 0.0])
-    s = np.einsum("n,fnk->fk", model.mass, traj.x) / model.mass.sum() @ downhill
+    s = com_series(traj, model.mass) @ downhill
     v = np.einsum("n,fnk->fk", model.mass, traj.v) / model.mass.sum() @ downhill
     late = traj.t > 0.2
     return 2 * np.polyfit(traj.t[late], s[late], 2)[0], float(v[-10:].mean())
