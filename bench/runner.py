@@ -321,7 +321,7 @@ def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENC
     frame_every x 2^k steps (the frames of every level fall on the same times); with `tol` (a tolerance ladder's
     level, `TruthSpec.level_tol`) the solver with adaptive steps at time.tol = tol instead, dt and frames the
     scenario's; `lag` other than `start` sets the runs' contact.lag (`TruthSpec.contact_lag`)."""
-    overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k and tol is None else {}
+    overrides: dict = {}
     if integrator != sc.time.integrator:
         overrides["time.integrator"] = integrator
     if tol is not None:
@@ -329,7 +329,8 @@ def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENC
     if lag != "start":
         overrides["contact.lag"] = lag
     return Variant(solver, {}, label=ladder_label(integrator, k, "step" if tol is None else "tolerance"),
-                   overrides=overrides, dt_scale=0.5 ** k if tol is None else 1.0)
+                   overrides=overrides, dt_scale=0.5 ** k if tol is None else 1.0,
+                   frame_scale=2 ** k if tol is None else 1)
 
 
 @dataclass
