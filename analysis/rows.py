@@ -223,8 +223,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
                           "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
-                          "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law
-                          } | curve
+                          "train_mesh": sc.mesh.key if "shape" in params else "",
+                          "law": task.scenario.contact.law} | curve
             metrics = run_metrics(v_ref, traj, task.scenario, stats)
             other_mesh = mesh is not None and not v.transfer
             here = on_truth_mesh(traj, other_mesh) if metrics["status"] == "ok" else None
