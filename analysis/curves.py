@@ -28,8 +28,8 @@ from frictionbench.analysis.truth import UNDECIDABLE_FACTOR
 
 #: A curve has flattened when its last halving of the step lowered err_truth by less than this share [-]. Where the
 #: step's error dominates, a halving lowers it by about half (first order: backward Euler) or three quarters
-#: (second order: BDF2); a drop below 20% means that the step's share of what is left is under about 40% (backward
-#: Euler, 0.5 s < 0.2) or 27% (BDF2): most of the error is something a finer step does not touch.
+#: (second order: BDF2); a drop below 20% means that the step's share s of what is left is under about 40% (backward
+#: Euler: 0.5 s < 0.2) or 27% (BDF2: 0.75 s < 0.2): most of the error is something a finer step does not touch.
 FLATTEN_DROP = 0.2
 #: A flattened curve is floored by its subspace when err_projection is at least this share of its err_truth [-]: at
 #: least half of its error is beyond any run in the subspace, so nothing but a richer subspace could even halve it.
