@@ -16,6 +16,7 @@ from typing import Protocol
 
 from tqdm import tqdm
 
+from frictionbench.analysis.curves import with_curve_floors
 from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
 from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
 from frictionbench.analysis.outcomes import ladder_outcome_columns, outcome_cells, outcome_scene, outcome_values
@@ -108,7 +109,9 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     reference runs by scenario name; `runs` gives the stored runs and the variants of each member (the harness's
     `bench.runner.StoreRuns`). Every row of a scenario whose reference ran gets the scene's time scales on the
     reference's mesh with the patch of its last frame and its own step's resolution of them (`analysis.timescales`:
-    computed once per mesh, material and step)."""
+    computed once per mesh, material and step). A variant on a step ladder of its own (`bench.variants.step_ladder`)
+    gives its rows its curve's columns (`curve_cells`), and the finest finished row of each curve its floor
+    (`analysis.curves.with_curve_floors`)."""
     rows = []
     timescales = SceneTimescales()
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
@@ -198,13 +201,14 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                             | err_truth(traj) | outcomes(traj, task.key))
         for v, params in runs.member_variants(m):
             label = v.label or v.solver
+            curve = curve_cells(v)
             if params is None:
                 rows.append(base | {"solver": v.solver, "variant": label, "status": "failed",
-                                    "failure": "no reduced model for this mesh shape"})
+                                    "failure": "no reduced model for this mesh shape"} | curve)
                 continue
             task = runs.task(v, m, params)
             if isinstance(task, str):
-                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": task})
+                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": task} | curve)
                 continue
             mesh = task.mesh
             traj, stats = runs.load(task.key)
@@ -219,7 +223,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
                           "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
-                          "train_mesh": sc.mesh.key if "shape" in params else "", "law": task.scenario.contact.law}
+                          "train_mesh": sc.mesh.key if "shape" in params else "",
+                          "law": task.scenario.contact.law} | curve
             metrics = run_metrics(v_ref, traj, task.scenario, stats)
             other_mesh = mesh is not None and not v.transfer
             here = on_truth_mesh(traj, other_mesh) if metrics["status"] == "ok" else None
@@ -231,7 +236,18 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
             for row in rows[first:]:
                 if row.get("dt") is not None:  # an adaptive run: at its median step
                     row |= timescales.resolution(scales, row["integrator"], row.get("dt_median") or row["dt"])
-    return with_frontier(with_ref_dt_change(with_remesh_ratio(rows)))
+    return with_curve_floors(with_frontier(with_ref_dt_change(with_remesh_ratio(rows))))
+
+
+def curve_cells(variant: object) -> dict:
+    """The curve columns of a variant's rows (`bench.runner.Variant.curve`, set by `bench.variants.step_ladder`):
+    `curve`, `curve_level` and, where it has one, `curve_twin`; none for a variant on no curve."""
+    curve = getattr(variant, "curve", "")
+    if not curve:
+        return {}
+    twin = getattr(variant, "curve_twin", "")
+    return ({"curve": curve, "curve_level": getattr(variant, "curve_level", None)}
+            | ({"curve_twin": twin} if twin else {}))
 
 
 #: The columns of an adaptive run (`solvers.step_stats.stats_summary`, `solvers.run.run_scenario`), on its rows only.

@@ -45,8 +45,12 @@ class Variant:
     """One solver configuration of the matrix: solver name, parameters, label, and an optional other mesh
     resolution of the same shape (remeshing; compared with the full-space run on that mesh, or, with `transfer`,
     carried onto the reference mesh and compared with the reference itself: accuracy across resolutions).
-    `model` names the trained model a remeshed variant shares with its training-mesh variant (default: the
-    label); `overrides` and `dt_scale` change the scenario (e.g. a larger time step)."""
+    `model` names the trained model a variant shares with another (a remeshed variant with its training-mesh
+    variant, a level of a step ladder with its base; default: the label); `overrides` and `dt_scale` change the
+    scenario (e.g. a larger time step), `frame_scale` multiplies its frame_every (a finer step storing its frames at
+    the scene's frame times). `curve` names the accuracy-for-time curve the variant is a point of, `curve_level` its
+    level k on it (dt / 2^k) and `curve_twin` the curve of the same variant with every tet (cubature "all"), where
+    it uses an optimised cubature (`bench.variants.step_ladder`; '' and None: no curve)."""
 
     solver: str
     params: dict = field(default_factory=dict)
@@ -56,16 +60,22 @@ class Variant:
     overrides: dict = field(default_factory=dict)
     dt_scale: float = 1.0
     transfer: bool = False
+    frame_scale: int = 1
+    curve: str = ""
+    curve_level: int | None = None
+    curve_twin: str = ""
 
     def scenario(self, sc: Scenario) -> Scenario:
-        """The member's scenario with this variant's `overrides` (dotted fields, e.g. {"contact.stiffness": 1e6})
-        and its time step times `dt_scale`, validated by the scenario loader."""
-        if not self.overrides and self.dt_scale == 1.0:
+        """The member's scenario with this variant's `overrides` (dotted fields, e.g. {"contact.stiffness": 1e6}),
+        its time step times `dt_scale` and its frame_every times `frame_scale`, validated by the scenario loader."""
+        if not self.overrides and self.dt_scale == 1.0 and self.frame_scale == 1:
             return sc
         from frictionbench.scenarios.load import scenario_from_dict, scenario_to_dict
 
         d = scenario_to_dict(sc)
         d["time"]["dt"] = sc.time.dt * self.dt_scale
+        if self.frame_scale != 1:
+            d["time"]["frame_every"] = sc.time.frame_every * self.frame_scale
         for dotted, value in self.overrides.items():
             *path, last = dotted.split(".")
             table = d
@@ -311,7 +321,7 @@ def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENC
     frame_every x 2^k steps (the frames of every level fall on the same times); with `tol` (a tolerance ladder's
     level, `TruthSpec.level_tol`) the solver with adaptive steps at time.tol = tol instead, dt and frames the
     scenario's; `lag` other than `start` sets the runs' contact.lag (`TruthSpec.contact_lag`)."""
-    overrides: dict = {"time.frame_every": sc.time.frame_every * 2 ** k} if k and tol is None else {}
+    overrides: dict = {}
     if integrator != sc.time.integrator:
         overrides["time.integrator"] = integrator
     if tol is not None:
@@ -319,7 +329,8 @@ def ladder_variant(sc: Scenario, integrator: str, k: int, solver: str = REFERENC
     if lag != "start":
         overrides["contact.lag"] = lag
     return Variant(solver, {}, label=ladder_label(integrator, k, "step" if tol is None else "tolerance"),
-                   overrides=overrides, dt_scale=0.5 ** k if tol is None else 1.0)
+                   overrides=overrides, dt_scale=0.5 ** k if tol is None else 1.0,
+                   frame_scale=2 ** k if tol is None else 1)
 
 
 @dataclass

@@ -9,10 +9,12 @@ it when it is asked for (`variant_set`): importing this module imports no solver
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from functools import partial
 
 from frictionbench.bench.runner import Variant
+from frictionbench.scenarios.model import integrator_names
 from frictionbench.solvers.registry import get_solver, unavailable
 
 EPOCHS = 30  # CI-sized default; `frictionbench run --epochs 1000` for the paper's figure
@@ -34,6 +36,45 @@ def grid(solver: str, label: str, base: dict | None = None, **axes: list) -> lis
     return [Variant(solver, dict(base or {}) | dict(zip(names, values)),
                     label=label.format(**dict(zip(names, values))))
             for values in itertools.product(*(axes[n] for n in names))]
+
+
+def curve_name(label: str, integrator: str | None = None) -> str:
+    """The name of a step ladder's curve (`step_ladder`): its base variant's label, and the integrator where the
+    ladder sets one (None: the scene's own)."""
+    return f"{label}-{integrator}" if integrator else label
+
+
+def step_ladder(variant: Variant, levels: Sequence[int] = (0, 1, 2, 3),
+                integrators: Sequence[str | None] = (None, "bdf2"), twin: Variant | None = None) -> list[Variant]:
+    """The variant's own accuracy-for-time curves: per integrator (None: the scene's own; a name of
+    `scenarios.model.integrator_names()` sets time.integrator) and level k of `levels`, the variant at dt / 2^k
+    (its `dt_scale` x 2^-k) storing its frames at the same times (frame_every x 2^k), as the truth's ladder does.
+
+    Labels are `<label>[-<integrator>][-dt/<2^k>]` (`affine-r24-cub60-bdf2-dt/4`; level 0 with the scene's
+    integrator is the variant itself, its label unchanged). Every level shares the variant's trained model (`model`:
+    the variant's, else its label; its parameters, which the training key is made of, are the variant's own: no
+    level trains anything). Each carries its curve (`curve_name` of the variant's label and the integrator), its
+    level and, with `twin` (the same variant with every tet, where this one runs an optimised cubature), the twin's
+    curve with the same integrator, which `analysis.curves` compares it with. Pure: nothing runs, nothing is
+    imported."""
+    if not levels or any(not isinstance(k, int) or isinstance(k, bool) or k < 0 for k in levels) \
+            or len(set(levels)) != len(levels):
+        raise ValueError(f"step_ladder of {variant.label!r}: levels must be distinct integers >= 0, got {levels}")
+    unknown = [i for i in integrators if i is not None and i not in integrator_names()]
+    if unknown or not integrators or len(set(integrators)) != len(integrators):
+        raise ValueError(f"step_ladder of {variant.label!r}: integrators {list(integrators)} must be distinct, None "
+                         f"or one of {list(integrator_names())}")
+    base = variant.label or variant.solver
+    out = []
+    for integrator in integrators:
+        curve = curve_name(base, integrator)
+        overrides = variant.overrides | ({"time.integrator": integrator} if integrator else {})
+        for k in sorted(levels):
+            out.append(replace(variant, label=curve if k == 0 else f"{curve}-dt/{2 ** k}", model=variant.model or base,
+                               overrides=overrides, dt_scale=variant.dt_scale * 0.5 ** k,
+                               frame_scale=variant.frame_scale * 2 ** k, curve=curve, curve_level=k,
+                               curve_twin=curve_name(twin.label or twin.solver, integrator) if twin else ""))
+    return out
 
 
 #: The full-space solver at half the reference's time step: how far the reference itself is from time-converged
@@ -71,6 +112,10 @@ NEWTON_VBD = [NEWTON_VBD_DEFAULT,
               *(Variant("newton-vbd", {"substeps": s, "iterations": 10}, label=f"s{s}-i10") for s in (4, 16, 64)),
               *(Variant("newton-vbd", {"substeps": 1, "iterations": i}, label=f"s1-i{i}") for i in (5, 20, 50))]
 
+#: LiCROM with the 12 affine columns, r = 24, on every tet and on 60 optimised cubature tets (its all-tets twin).
+AFFINE_R24 = Variant("licrom", LICROM_AFFINE, label="affine-r24")
+AFFINE_R24_CUB60 = Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60")
+
 VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "licrom": [Variant("licrom", LICROM, label="r20")],
     "licrom-affine": [Variant("licrom", LICROM_AFFINE, label="affine-r24"),
@@ -89,6 +134,10 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "pod": [Variant("pod", {"r": 20}, label="r20"),
             Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt", model="r20")],
     "affine": [Variant("affine", {}, label="affine12")],
+    # LiCROM+affine r = 24 (every tet, 60 optimised cubature tets) each on its own step ladder: dt, dt/2, dt/4, dt/8
+    # under the scene's integrator and BDF2, each level on the base variant's trained model; each curve on the
+    # frontier beside the full-space ladder, with what floors it (`analysis.curves`; issue 22, point 1; on demand)
+    "licrom-ladder": [*step_ladder(AFFINE_R24), *step_ladder(AFFINE_R24_CUB60, twin=AFFINE_R24)],
     # LiCROM's rank swept (a grid over the solver's declared parameters; not in the default set)
     "licrom-rank": partial(grid, "licrom", "affine-r{r}", LICROM_AFFINE, r=[12, 24, 48]),
     # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh

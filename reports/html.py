@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from frictionbench.analysis.curves import CUBATURE_MARGIN, FLATTEN_DROP, SUBSPACE_SHARE
 from frictionbench.analysis.derived import remeshing_summary
 from frictionbench.analysis.schema import COLUMNS, OUTCOMES, flag, is_missing, names, stability_metrics, truthy
 from frictionbench.analysis.table import results_frame, variant_labels
+from frictionbench.analysis.truth import UNDECIDABLE_FACTOR
 from frictionbench.reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
 from frictionbench.reports.interactive import page_scripts, plot_div, plotly_version
 from frictionbench.reports.plots import (error_over_time_figure, error_parts_figure, frontier_figure, ladder_figure,
@@ -185,12 +187,40 @@ def _results(frame: pd.DataFrame) -> str:
 
 
 def _frontier(frame: pd.DataFrame) -> str:
-    """The interactive frontier: error against cost per run, the ladders as curves, the Pareto front."""
+    """The interactive frontier: error against cost per run, the variants' own curves, the ladders as curves, the
+    Pareto front; below it what floors each variant's curve."""
     return (_note("One point per run (hover: variant, scenario, values; click a legend entry to hide or show "
                   "it). The dotted red line is the Pareto front of the variants' medians over scenarios: no other "
                   "variant is both cheaper and more accurate. The grey curves are the full-space ladders "
-                  "(halved time steps), per integrator.")
-            + plot_div(frontier_figure(frame), "frontier", 480))
+                  "(halved time steps), per integrator; a coloured line joins the levels of a variant's own step "
+                  "ladder (its curve), per scenario, in its family's hue.")
+            + plot_div(frontier_figure(frame), "frontier", 480) + _curve_floors(frame))
+
+
+#: The columns of the curve floor table: column -> heading.
+_CURVE_FLOOR = {"scenario": "scenario", "solver": "solver", "curve": "curve", "curve_level": "finest level",
+                "dt": "dt [s]", "err_truth": "finest err_truth", "err_projection": "err_projection",
+                "curve_floor": "floor"}
+
+
+def _curve_floors(frame: pd.DataFrame) -> str:
+    """Per scenario and variant curve, its finest finished level and what floors it (`analysis.curves`); '' where
+    no row has a floor verdict column."""
+    if "curve_floor" not in frame:
+        return ""
+    finest = frame[frame["curve_floor"].notna()]
+    if finest.empty:
+        return ""
+    table = _columns(finest.sort_values(["scenario", "solver", "curve"]), list(_CURVE_FLOOR)).rename(
+        columns=_CURVE_FLOOR)
+    return (_note(f"What floors each variant's curve, at its finest level: time step while the last halving still "
+                  f"lowered err_truth by {FLATTEN_DROP:.0%} or more; once it lowers it less, the truth where the "
+                  f"error is within {UNDECIDABLE_FACTOR:g}x the truth's own error estimate, the cubature where the "
+                  f"all-tets twin curve is at most {CUBATURE_MARGIN:g}x as far from the truth at the same level, "
+                  f"the subspace where err_projection is at least {SUBSPACE_SHARE:.0%} of err_truth, else the "
+                  "reduction (the reduced dynamics); too few levels: fewer than two successive levels finished "
+                  "(docs/design.md, \"Reduced curves\").")
+            + _table(table))
 
 
 def _ladders(frame: pd.DataFrame) -> str:

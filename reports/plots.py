@@ -108,31 +108,46 @@ def _hover(label: str, scenario: object, values: Mapping[str, float]) -> str:
 
 def frontier_figure(frame: pd.DataFrame) -> dict[str, object]:
     """Error against cost, log axes: one point per run (a trace per solver variant, hover: variant, scenario,
-    values), the ground-truth ladders as curves per integrator and scenario, and the Pareto front of the variants'
-    medians. Columns from `accuracy_columns`; rows with a zero or missing error or cost are left out (the reference
-    against itself, the truth against itself)."""
+    values), each variant's own step ladder (rows with a `curve`) joined level by level into a line per curve and
+    scenario in its family's hue (its points in the same shade), the ground-truth ladders as curves per integrator
+    and scenario, and the Pareto front of the variants' medians. Columns from `accuracy_columns`; rows with a zero
+    or missing error or cost are left out (the reference against itself, the truth against itself)."""
     cols = accuracy_columns(frame)
     f = pd.DataFrame({"label": variant_labels(frame), "scenario": frame.get("scenario", pd.Series("", frame.index)),
                       "family": frame["solver"].astype(str) if "solver" in frame else "",
                       "x": numeric_column(frame, cols.cost), "y": numeric_column(frame, cols.error),
                       "dt": numeric_column(frame, "dt"), "ladder": ladder_mask(frame)})
     f["integrator"] = frame["ladder"].fillna("").astype(str) if "ladder" in frame else ""
+    f["curve"] = frame["curve"].fillna("").astype(str) if "curve" in frame else ""
+    f["level"] = numeric_column(frame, "curve_level")
     f = f[(f["x"] > 0) & (f["y"] > 0)]
     data: list[dict[str, object]] = []
     runs = f[~f["ladder"]]
     families = sorted(runs["family"].unique())
-    shade: dict[str, int] = {}
+    shades: dict[str, dict[str, str]] = {}  # family -> its variants' and curves' colours: a curve's points share one
+
+    def colour(family: str, key: str) -> str:
+        """The shade of the family's ramp that `key` (a variant label, or a curve) takes, the next one at first."""
+        ramp = FAMILY_RAMPS[families.index(family) % len(FAMILY_RAMPS)]
+        taken = shades.setdefault(family, {})
+        return taken.setdefault(key, ramp[len(taken) % len(ramp)])
+
     for label, g in runs.groupby("label", sort=True):
         family = g["family"].iloc[0]
         k = families.index(family)
-        ramp = FAMILY_RAMPS[k % len(FAMILY_RAMPS)]
-        shade[family] = shade.get(family, -1) + 1
         data.append({"type": "scatter", "mode": "markers", "name": text(label), "x": g["x"].tolist(),
-                     "y": g["y"].tolist(), "marker": {"size": 9, "color": ramp[shade[family] % len(ramp)],
+                     "y": g["y"].tolist(), "marker": {"size": 9, "color": colour(family, g["curve"].iloc[0] or label),
                                 "symbol": SYMBOLS[k % len(SYMBOLS)], "line": {"width": 0.5, "color": "#333333"}},
                      "hovertext": [_hover(label, s, {cols.error: y, cols.cost: x})
                                    for s, x, y in zip(g["scenario"], g["x"], g["y"])],
                      "hoverinfo": "text"})
+    for (family, curve), g in runs[runs["curve"] != ""].groupby(["family", "curve"], sort=True):
+        for m, (scenario, points) in enumerate(g.groupby("scenario", sort=True)):
+            points = points.sort_values("level")
+            data.append({"type": "scatter", "mode": "lines", "name": text(f"curve {family}/{curve}"),
+                         "legendgroup": text(f"curve {family}/{curve}"), "showlegend": m == 0,
+                         "x": points["x"].tolist(), "y": points["y"].tolist(),
+                         "line": {"color": colour(family, curve), "width": 1.5}, "hoverinfo": "skip"})
     medians = runs.groupby("label", sort=True)[["x", "y"]].median()
     front = pareto_front(medians["x"].to_numpy(), medians["y"].to_numpy())
     if len(front):
