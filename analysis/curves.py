@@ -87,8 +87,8 @@ def with_curve_floors(rows: Sequence[Mapping[str, object]]) -> list[dict]:
         members = sorted(members, key=lambda r: number(r["curve_level"]))
         finest = members[-1]
         twins = curves.get((scenario, solver, finest.get("curve_twin") or None), [])
-        twin = next((number(t["err_truth"]) for t in twins if number(t["curve_level"]) == number(finest["curve_level"])),
-                    None)
+        level = number(finest["curve_level"])
+        twin = next((number(t["err_truth"]) for t in twins if number(t["curve_level"]) == level), None)
         verdicts[id(finest)] = curve_floor([int(number(r["curve_level"])) for r in members],
                                            [number(r["err_truth"]) for r in members],
                                            number(finest.get("err_projection"), finite=True), twin,
