@@ -1,5 +1,6 @@
 """The report's first screen: per solver family its best variant's accuracy, speed, stick/slip agreement,
-stability and whether the truth is certified, and the gates as a count with the failures listed.
+stability and whether the truth is certified, with a truth the family's best measured speed-up at equal accuracy
+(over all its variants) and the accuracy at which it holds, and the gates as a count with the failures listed.
 
 Accuracy is against the ground truth (`err_truth`) when the results have one, else against the same-dt reference
 (`pos_rmse_rel`), with the step-time speed-up in place of the speed-up at equal accuracy (`reports.plots.
@@ -105,11 +106,34 @@ def headline_table(frame: pd.DataFrame, gates: Sequence[object] = ()) -> pd.Data
                      f"median {cols.speedup}": numeric_column(g, cols.speedup).median(),
                      "stick/slip agreement": _count(stick), "stable runs": _count(stable),
                      "truth certified": certified})
+        if cols.truth:
+            rows[-1] |= best_measured_speedup(frame[(frame["solver"].astype(str) == family) & ~ladder_mask(frame)])
         notes = g["frontier_note"].dropna().astype(str) if "frontier_note" in g else pd.Series(dtype=str)
         notes = notes[notes.str.strip() != ""]
         if not notes.empty:  # why a speed-up at equal accuracy is missing, e.g. more accurate than the ladder
             rows[-1]["frontier note"] = "; ".join(f"{note} ({n})" for note, n in notes.value_counts().items())
     return pd.DataFrame(rows)
+
+
+#: The headline's columns of a family's best measured speed-up at equal accuracy and where it holds.
+BEST_SPEEDUP, BEST_AT = "best measured speedup_equal_accuracy", "at err_truth (variant, scenario)"
+
+
+def best_measured_speedup(rows: pd.DataFrame) -> dict[str, object]:
+    """Of a family's finished rows (any variant, any scenario), the largest `speedup_equal_accuracy` that is
+    measured, i.e. interpolated on the full-space ladder (no `frontier_note`: not an upper bound, not beyond the
+    ladder), and the err_truth [fraction of L], variant and scenario at which it holds; NaN and an en dash where
+    none is."""
+    speed = numeric_column(rows, "speedup_equal_accuracy").where(_runs_ok(rows))
+    if "frontier_note" in rows:
+        notes = rows["frontier_note"].map(lambda v: "" if is_missing(v) else str(v).strip())
+        speed = speed.where(notes == "")
+    if speed.dropna().empty:
+        return {BEST_SPEEDUP: np.nan, BEST_AT: "\u2013"}
+    i = speed.idxmax()
+    err = numeric_column(rows, "err_truth")[i]
+    return {BEST_SPEEDUP: float(speed[i]),
+            BEST_AT: f"{err:.3g} ({variant_labels(rows.loc[[i]]).iloc[0]}, {rows.loc[i, 'scenario']})"}
 
 
 def truth_summary(frame: pd.DataFrame) -> str:

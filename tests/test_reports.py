@@ -30,7 +30,7 @@ from frictionbench.analysis.table import (
     write_results_csv,
 )
 from frictionbench.reports.export import export_vtu_series
-from frictionbench.reports.headline import headline_table
+from frictionbench.reports.headline import BEST_AT, BEST_SPEEDUP, headline_table
 from frictionbench.reports.html import ScenarioRuns, write_report_html
 from frictionbench.reports.interactive import plot_div, plotly_js, script_json, typed_array
 from frictionbench.reports.plots import FAMILY_RAMPS, frontier_figure, pareto_front
@@ -283,6 +283,11 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     assert table.loc["pod", "truth certified"] == "1 of 2 scenarios"
     assert table.loc["pod", "frontier note"] == "less accurate than every ladder level (2)"
     assert pd.isna(table.loc["licrom", "frontier note"])
+    # the family's best measured speed-up at equal accuracy, over every variant and scenario, and where it holds;
+    # none where every speed-up is an upper bound (a frontier note)
+    assert table.loc["licrom", BEST_SPEEDUP] == pytest.approx(30.0)
+    assert table.loc["licrom", BEST_AT] in {"0.08 (licrom/r10, drop)", "0.08 (licrom/r10, slope)"}
+    assert pd.isna(table.loc["pod", BEST_SPEEDUP]) and table.loc["pod", BEST_AT] == "\u2013"
     page = write_report_html(frame, tmp_path, gates=gates).read_text(encoding="utf-8")
     check_html(page)
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
@@ -313,6 +318,7 @@ def test_headline_without_ground_truth_falls_back_to_the_reference(runs) -> None
     assert table.loc["licrom", "best variant"] == "licrom/r16"  # r64 failed: no error
     assert table.loc["licrom", "median speedup"] == pytest.approx(20.0)
     assert (table["truth certified"] == "no truth").all()
+    assert BEST_SPEEDUP not in table  # no truth, no speed-up at equal accuracy
 
 
 HOSTILE = '</script><script>window.pwned=1</script><img src=x onerror="window.pwned=2">&amp;\u2028'
