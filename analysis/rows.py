@@ -58,12 +58,13 @@ class LadderRuns(Protocol):
 
 class Runs(Protocol):
     """What row building reads from the harness: stored runs by key, the variants that apply to a member (with
-    their parameters, None where the variant has none for the member's shape), a variant's run on a member (or why
-    it has none), and the store key of the reference solver's run of a scenario on a mesh."""
+    their parameters, or in their place the reason where the variant has none for the member's shape, e.g. no
+    trained model), a variant's run on a member (or why it has none), and the store key of the reference solver's
+    run of a scenario on a mesh."""
 
     def load(self, key: str) -> tuple[Trajectory | None, dict]: ...
 
-    def member_variants(self, member: SuiteMember) -> list[tuple[object, dict | None]]: ...
+    def member_variants(self, member: SuiteMember) -> list[tuple[object, dict | str]]: ...
 
     def task(self, variant: object, member: SuiteMember, params: dict) -> RunTask | str: ...
 
@@ -202,9 +203,9 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
         for v, params in runs.member_variants(m):
             label = v.label or v.solver
             curve = curve_cells(v)
-            if params is None:
-                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed",
-                                    "failure": "no reduced model for this mesh shape"} | curve)
+            if isinstance(params, str):
+                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": params}
+                            | curve)
                 continue
             task = runs.task(v, m, params)
             if isinstance(task, str):
@@ -224,6 +225,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
                           "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
                           "train_mesh": sc.mesh.key if "shape" in params else "",
+                          "train_data": getattr(v, "training", "reference") if "shape" in params else "",
                           "law": task.scenario.contact.law} | curve
             metrics = run_metrics(v_ref, traj, task.scenario, stats)
             other_mesh = mesh is not None and not v.transfer

@@ -339,6 +339,9 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("r", "parameter", unit="count", meaning="a reduced variant's subspace dimension", source=_ROWS,
            placed=False),
     Column("model", "parameter", unit="text", meaning="the trained model a variant uses", source=_ROWS, placed=False),
+    Column("train_data", "parameter", unit="text",
+           meaning="what a reduced model trained on: `reference` (the training members' runs at the scene's step) "
+                   "or `truth` (their truths); '' without one", source=_ROWS, placed=False),
     _accuracy("remesh_ratio", "pos_rmse_rel on another mesh over that on the training mesh",
               "frictionbench.analysis.derived.with_remesh_ratio", unit="-", placed=False),
     _accuracy("ref_dt_change", "the full-space run at a smaller dt against the reference: its own time error",

@@ -1,10 +1,11 @@
 """The matrix runner: every scenario of a suite with the full-space reference and every solver variant.
 
-Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
-shape on the suite's training split (cached), (3) every variant on every member (and on the other mesh of the
-shape, for remeshing), (4) metrics against the references, the rows built by `analysis.rows.collect_rows` ->
-results.csv and report.html. Each run is a folder of the `RunStore` keyed by a hash of its scenario and settings:
-an interrupted run resumes with what is missing.
+Phases: (1) full-space references of every member (also the training data) and, with a truth, each member's truth
+ladder, (2) reduced models trained per mesh shape on the suite's training split (cached; on the training members'
+references, or on their truths for a variant whose `training` is "truth"), (3) every variant on every member (and
+on the other mesh of the shape, for remeshing), (4) metrics against the references, the rows built by
+`analysis.rows.collect_rows` -> results.csv and report.html. Each run is a folder of the `RunStore` keyed by a
+hash of its scenario and settings: an interrupted run resumes with what is missing.
 Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster):
 a task carries what its worker needs and returns what it produced (`bench.payload`); only the client writes here.
 """
@@ -28,6 +29,7 @@ from frictionbench.analysis.truth import ladder_continues
 from frictionbench.bench.executors import make_executor, usable_cores
 from frictionbench.bench.payload import Artefact, RunResult, artefact_folders, localised
 from frictionbench.bench.store import RunStore, run_key
+from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, shape_of
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
 from frictionbench.scenarios.model import MeshSpec, Scenario
@@ -50,7 +52,10 @@ class Variant:
     scenario (e.g. a larger time step), `frame_scale` multiplies its frame_every (a finer step storing its frames at
     the scene's frame times). `curve` names the accuracy-for-time curve the variant is a point of, `curve_level` its
     level k on it (dt / 2^k) and `curve_twin` the curve of the same variant with every tet (cubature "all"), where
-    it uses an optimised cubature (`bench.variants.step_ladder`; '' and None: no curve)."""
+    it uses an optimised cubature (`bench.variants.step_ladder`; '' and None: no curve). `training` names what a
+    trained model learns from (`bench.training.TRAINING_DATA`): the training members' references at the scene's step
+    (default) or their truths (the finest runs of their truth ladders); the training runs are part of the model's
+    cache key, so the two never share a model."""
 
     solver: str
     params: dict = field(default_factory=dict)
@@ -64,6 +69,12 @@ class Variant:
     curve: str = ""
     curve_level: int | None = None
     curve_twin: str = ""
+    training: str = "reference"
+
+    def __post_init__(self) -> None:
+        if self.training not in TRAINING_DATA:
+            raise ValueError(f"variant {self.label or self.solver!r}: training {self.training!r} not one of "
+                             f"{list(TRAINING_DATA)}")
 
     def scenario(self, sc: Scenario) -> Scenario:
         """The member's scenario with this variant's `overrides` (dotted fields, e.g. {"contact.stiffness": 1e6}),
@@ -227,8 +238,6 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns. A variant whose solver
     is unavailable here is skipped (`available_variants`): a note on stderr and `skipped` in run.json say why, and
     results.csv has no row for it."""
-    from frictionbench.bench.training import prepare_variants
-
     out = Path(out)
     store = RunStore(out / "runs")
     suite = load_suite(suite_name).only(only)
@@ -241,11 +250,11 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
     run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
     ladders = run_ladders(suite, spec, store, device, jobs, executor, reference) if spec else {}
-    resolved = prepare_variants(suite, variants, store, refs, out / "models", device)
+    resolved = prepare_variants(suite, variants, store, refs, out / "models", device, ladders)
     tasks = []
     for m in suite.scenarios:
         for v, params in member_variants(resolved, variants, m):
-            if params is None:
+            if isinstance(params, str):  # no model for the member's shape: a failed row with the reason
                 continue
             task = variant_task(v, m, params)
             if isinstance(task, Task):
@@ -432,15 +441,17 @@ def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:
     return Task(sc, v.solver, params, mesh_variant(member, v.remesh) if v.remesh else None)
 
 
-def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) -> list[tuple[Variant, dict | None]]:
-    """The (variant, params) that apply to one member: a per-shape entry only to members of that shape; None
-    (a failed row) when a variant has no entry for the member's shape."""
-    shape = member.scenario.mesh.name or member.scenario.mesh.key
-    out = []
+def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) -> list[tuple[Variant, dict | str]]:
+    """The (variant, params) that apply to one member: a per-shape entry only to members of that shape; in place
+    of params the reason (a failed row) when a variant has none for the member's shape: its `Unprepared` reason
+    there (`bench.training.prepare_variants`), else NO_MODEL."""
+    shape = shape_of(member)
+    out: list[tuple[Variant, dict | str]] = []
     for v in variants:
         entries = [p for w, p in resolved if w is v]
-        match = [p for p in entries if p is not None and p.get("shape", shape) == shape]
-        out.append((v, match[0] if match else None))
+        match = [p for p in entries if isinstance(p, dict) and p.get("shape", shape) == shape]
+        why = [p.reason for p in entries if isinstance(p, Unprepared) and p.shape == shape]
+        out.append((v, match[0] if match else why[0] if why else NO_MODEL))
     return out
 
 
@@ -457,8 +468,8 @@ class StoreRuns:
         """A stored run: (trajectory or None, stats)."""
         return self.store.load(key)
 
-    def member_variants(self, member: SuiteMember) -> list[tuple[Variant, dict | None]]:
-        """The (variant, params) that apply to a member (`member_variants`)."""
+    def member_variants(self, member: SuiteMember) -> list[tuple[Variant, dict | str]]:
+        """The (variant, params or why it has none) that apply to a member (`member_variants`)."""
         return member_variants(self.resolved, self.variants, member)
 
     def task(self, variant: Variant, member: SuiteMember, params: dict) -> Task | str:

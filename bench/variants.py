@@ -116,6 +116,13 @@ NEWTON_VBD = [NEWTON_VBD_DEFAULT,
 AFFINE_R24 = Variant("licrom", LICROM_AFFINE, label="affine-r24")
 AFFINE_R24_CUB60 = Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60")
 
+#: The ranks of the `licrom-rank` sweep (LiCROM with the affine columns, every tet).
+RANKS = (12, 24, 48, 96)
+
+#: The two variants above trained on the training members' truths instead of their references (`Variant.training`).
+AFFINE_R24_TRUTHDATA = replace(AFFINE_R24, label="affine-r24-truthdata", training="truth")
+AFFINE_R24_CUB60_TRUTHDATA = replace(AFFINE_R24_CUB60, label="affine-r24-cub60-truthdata", training="truth")
+
 VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "licrom": [Variant("licrom", LICROM, label="r20")],
     "licrom-affine": [Variant("licrom", LICROM_AFFINE, label="affine-r24"),
@@ -138,8 +145,13 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # under the scene's integrator and BDF2, each level on the base variant's trained model; each curve on the
     # frontier beside the full-space ladder, with what floors it (`analysis.curves`; issue 22, point 1; on demand)
     "licrom-ladder": [*step_ladder(AFFINE_R24), *step_ladder(AFFINE_R24_CUB60, twin=AFFINE_R24)],
-    # LiCROM's rank swept (a grid over the solver's declared parameters; not in the default set)
-    "licrom-rank": partial(grid, "licrom", "affine-r{r}", LICROM_AFFINE, r=[12, 24, 48]),
+    # LiCROM's rank swept, every tet (a grid over the solver's declared parameters; on demand): what the subspace
+    # can hold against what it costs (issue 22, point 3)
+    "licrom-rank": partial(grid, "licrom", "affine-r{r}", LICROM_AFFINE, r=list(RANKS)),
+    # LiCROM+affine r = 24 (every tet, 60 optimised cubature tets) trained on the training members' references, as
+    # every other set, and on their truths, side by side (issue 22, point 3; on demand; a run without a truth gives
+    # the truth-trained ones failed rows saying so)
+    "licrom-training": [AFFINE_R24, AFFINE_R24_TRUTHDATA, AFFINE_R24_CUB60, AFFINE_R24_CUB60_TRUTHDATA],
     # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh
     # (the other mesh of the shape, carried onto the reference mesh for the comparison), the second-order integrator
     "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3"),

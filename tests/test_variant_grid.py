@@ -21,4 +21,4 @@ def test_a_grid_over_an_undeclared_parameter_is_refused() -> None:
 
 
 def test_the_rank_sweep_set_is_a_grid() -> None:
-    assert [v.params["r"] for v in variant_set("licrom-rank")] == [12, 24, 48]
+    assert [v.params["r"] for v in variant_set("licrom-rank")] == [12, 24, 48, 96]
