@@ -3,6 +3,8 @@ machine slow the reduced solver's r x r operations by an order of magnitude."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from threadpoolctl import threadpool_limits
 
@@ -16,3 +18,21 @@ threadpool_limits(1)
 def block():
     """The coarse structured block (0.2 x 0.1 x 0.2 m)."""
     return load_mesh(MeshSpec(name="block", resolution="coarse"))
+
+
+@pytest.fixture
+def licrom_trainings(monkeypatch) -> list[dict]:
+    """LiCROM's training replaced by a stub that writes an empty checkpoint; returns the list of its calls, each
+    {"paths": the training trajectories, "settings": the training settings}, in order."""
+    pytest.importorskip("torch")
+    import frictionbench.solvers.licrom.train as train
+
+    calls: list[dict] = []
+
+    def fake_training(paths, folder, settings, device, progress, identity):
+        calls.append({"paths": paths, "settings": settings})
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        (Path(folder) / "model.pt").write_bytes(b"")
+
+    monkeypatch.setattr(train, "train_from_trajectories", fake_training)
+    return calls

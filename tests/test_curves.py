@@ -56,25 +56,15 @@ def test_the_licrom_ladder_set_is_two_curves_per_cubature_and_in_no_default():
     assert all("licrom-ladder" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
-def test_every_level_of_a_licrom_ladder_trains_nothing_of_its_own(tmp_path: Path, monkeypatch):
+def test_every_level_of_a_licrom_ladder_trains_nothing_of_its_own(tmp_path: Path, licrom_trainings):
     """prepare (what `bench.training.prepare_variants` calls per variant) resolves every level to the one
     checkpoint, trained once."""
-    pytest.importorskip("torch")
-    import frictionbench.solvers.licrom.train as train
     from frictionbench.solvers.registry import get_solver
 
-    trained = []
-
-    def fake_training(paths, folder, settings, device, progress, identity):
-        trained.append(settings)
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        (Path(folder) / "model.pt").write_bytes(b"")
-
-    monkeypatch.setattr(train, "train_from_trajectories", fake_training)
     data = [tmp_path / "a.npz"]
     resolved = [get_solver(v.solver)(device="cpu", **v.params).prepare("cheese", data, tmp_path / "models", "s")
                 for v in step_ladder(AFFINE_R24)]
-    assert len(trained) == 1 and len({r["checkpoint"] for r in resolved}) == 1
+    assert len(licrom_trainings) == 1 and len({r["checkpoint"] for r in resolved}) == 1
 
 
 def _row(curve: str, level: int, err: float, **cells) -> dict:

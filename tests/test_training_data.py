@@ -133,23 +133,13 @@ def test_the_rank_and_training_sets_sweep_what_the_subspace_holds_and_pass_the_g
     guard_resources(quick, ranks + training, truth=truth_config(quick))
 
 
-def test_a_licrom_model_is_keyed_by_its_training_runs(tmp_path: Path, monkeypatch):
+def test_a_licrom_model_is_keyed_by_its_training_runs(tmp_path: Path, licrom_trainings):
     """The same settings on another training set train another model; on the same set, none."""
-    pytest.importorskip("torch")
-    import frictionbench.solvers.licrom.train as train
     from frictionbench.solvers.registry import get_solver
 
-    trained = []
-
-    def fake_training(paths, folder, settings, device, progress, identity):
-        trained.append(paths)
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        (Path(folder) / "model.pt").write_bytes(b"")
-
-    monkeypatch.setattr(train, "train_from_trajectories", fake_training)
     solver = get_solver("licrom")(device="cpu", **AFFINE_R24.params)
     references, truths = [tmp_path / "ref" / "trajectory.npz"], [tmp_path / "truth" / "trajectory.npz"]
     first, other, again = (solver.prepare("cheese", data, tmp_path / "models", "s")
                            for data in (references, truths, references))
     assert first["checkpoint"] != other["checkpoint"] and again == first
-    assert trained == [[str(p) for p in references], [str(p) for p in truths]]
+    assert [c["paths"] for c in licrom_trainings] == [[str(p) for p in references], [str(p) for p in truths]]
