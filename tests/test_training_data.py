@@ -120,8 +120,8 @@ def test_training_runs_name_each_members_truth_or_why_it_has_none(tmp_path):
 
 def test_the_rank_and_training_sets_sweep_what_the_subspace_holds_and_pass_the_guard_on_quick():
     ranks = variant_set("licrom-rank")
-    assert [v.params["r"] for v in ranks] == list(RANKS) == [12, 24, 48, 96]
-    assert {v.params["cubature"] for v in ranks} == {"all"} and {v.training for v in ranks} == {"reference"}
+    assert ranks[0].label == "affine12" and [v.params["r"] for v in ranks[1:]] == list(RANKS) == [24, 48, 96]
+    assert {v.params["cubature"] for v in ranks[1:]} == {"all"} and {v.training for v in ranks} == {"reference"}
     training = variant_set("licrom-training")
     assert [(v.label, v.training) for v in training] == [
         ("affine-r24", "reference"), ("affine-r24-truthdata", "truth"),

@@ -3,6 +3,7 @@
 import pytest
 
 from frictionbench.bench.variants import LICROM, grid, variant_set
+from frictionbench.solvers.registry import get_solver
 
 
 def test_a_grid_is_the_cartesian_product_of_declared_parameters() -> None:
@@ -21,4 +22,8 @@ def test_a_grid_over_an_undeclared_parameter_is_refused() -> None:
 
 
 def test_the_rank_sweep_set_is_a_grid() -> None:
-    assert [v.params["r"] for v in variant_set("licrom-rank")] == [12, 24, 48, 96]
+    ranks = variant_set("licrom-rank")
+    assert [(v.solver, v.params.get("r")) for v in ranks] == [("affine", None), ("licrom", 24), ("licrom", 48),
+                                                              ("licrom", 96)]
+    for v in ranks:  # every point a valid solver: r counts the affine columns, so LiCROM+affine needs r > 12
+        get_solver(v.solver)(device="cpu", **v.params)
