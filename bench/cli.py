@@ -165,7 +165,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
                     jobs=resolve_jobs(args.jobs, args.device), executor=args.executor,
                     report=not args.no_report and not with_baseline,
-                    only=args.only, allow_large=args.allow_large, with_truth=not args.no_truth,
+                    only=args.only, resolution=args.resolution, allow_large=args.allow_large,
+                    with_truth=not args.no_truth,
                     truth_overrides={"tol": args.truth_tol, "depth": args.truth_depth,
                                      "integrator": args.truth_integrator})
     print(f"results: {csv}")
@@ -209,8 +210,6 @@ def cmd_timescales(args: argparse.Namespace) -> int:
     """Print a suite's scenes' time scales (one line per member) and, per mesh, the resolution of each level of
     its truth ladder (`analysis.timescales`); with --runs, the whole-body contact patch of each member is its
     stored reference run's last frame."""
-    from dataclasses import replace
-
     import pandas as pd
 
     from frictionbench.analysis.timescales import SCENE_COLUMNS, timescale_table
@@ -218,11 +217,9 @@ def cmd_timescales(args: argparse.Namespace) -> int:
     from frictionbench.bench.store import RunStore, run_key
     from frictionbench.scenarios.suites import load_suite
 
-    suite = load_suite(args.suite).only(args.only)
+    suite = load_suite(args.suite).only(args.only).at_resolution(args.resolution)
     spec = (suite.truth or TruthSpec()).with_(depth=args.depth, integrator=args.integrator, where="--", sep="")
-    scenarios = [m.scenario if args.resolution is None
-                 else replace(m.scenario, mesh=replace(m.scenario.mesh, resolution=args.resolution))
-                 for m in suite.scenarios]
+    scenarios = [m.scenario for m in suite.scenarios]
     store = RunStore(Path(args.runs) / "runs") if args.runs else None
 
     def last_frame(sc: Scenario):
@@ -357,6 +354,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "the reference's name for the reference only)")
     s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
     s.add_argument("--only", help="run only the members whose names match this shell pattern, e.g. 'paper/cheese_*'")
+    s.add_argument("--resolution", help="every member on its shape's catalogue mesh at this resolution instead of "
+                                        "the suite's (e.g. coarse: a suite's truths where a small machine can "
+                                        "afford them); rows name the mesh run")
     s.add_argument("--jobs", type=jobs_arg, help=JOBS_HELP)
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--executor", default="process", choices=["process", "dask"])

@@ -228,19 +228,20 @@ def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
 
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
               executor: str = "process", report: bool = True, only: str | None = None,
-              allow_large: bool = False, reference: str = REFERENCE, with_truth: bool = True,
-              truth_overrides: dict | None = None) -> Path:
+              resolution: str | None = None, allow_large: bool = False, reference: str = REFERENCE,
+              with_truth: bool = True, truth_overrides: dict | None = None) -> Path:
     """Run the matrix of `suite_name` with `variants` into `out` (only the members matching the shell pattern
-    `only`, if given), every run compared with the `reference` solver's; returns the results.csv path. Every run
-    is checked by the resource guard first (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts
-    its bounds). With `with_truth`, the suite's `[truth]` (changed by `truth_overrides`: tol, depth, integrator,
+    `only`, if given; every member on its shape's mesh at `resolution`, if given, `Suite.at_resolution`), every run
+    compared with the `reference` solver's; returns the results.csv path. Every run is checked by the resource guard
+    first (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts its bounds). With `with_truth`,
+    the suite's `[truth]` (changed by `truth_overrides`: tol, depth, integrator,
     named `--truth-*` in errors; a suite without one gets the defaults when overrides are given) builds a ground
     truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns. A variant whose solver
     is unavailable here is skipped (`available_variants`): a note on stderr and `skipped` in run.json say why, and
     results.csv has no row for it."""
     out = Path(out)
     store = RunStore(out / "runs")
-    suite = load_suite(suite_name).only(only)
+    suite = load_suite(suite_name).only(only).at_resolution(resolution)
     variants, skipped = available_variants(variants)
     spec = truth_config(suite, with_truth, truth_overrides)
     guard_resources(suite, variants, allow_large=allow_large or suite.allow_large, truth=spec)
@@ -264,7 +265,8 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
-                                         "reference": reference, "truth": spec.__dict__ if spec else None,
+                                         "resolution": resolution, "reference": reference,
+                                         "truth": spec.__dict__ if spec else None,
                                          "skipped": skipped, "wall_s": time.perf_counter() - t0})
     if report:
         from frictionbench.bench.reporting import build_report  # here, not above: the worker processes need no plotting

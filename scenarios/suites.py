@@ -150,6 +150,25 @@ class Suite:
             raise ScenarioError("--only", pattern, f"matches no member of suite {self.name}")
         return replace(self, scenarios=kept)
 
+    def at_resolution(self, resolution: str | None) -> "Suite":
+        """Every member on the catalogue mesh of its shape at `resolution` (e.g. `coarse`: paper-damped where a
+        2-core machine can afford certified truths); None keeps the members' own. Raises ScenarioError naming
+        `--resolution` when a member's mesh is a file or its shape has no mesh at that resolution."""
+        if resolution is None:
+            return self
+        from frictionbench.scenarios.meshes import catalogue  # lazily: loading a suite never touches mesh code
+
+        meshes = catalogue()
+        for m in self.scenarios:
+            mesh = m.scenario.mesh
+            if mesh.path is not None or resolution not in meshes.get(mesh.name, ()):
+                raise ScenarioError("--resolution", resolution,
+                                    f"member {m.scenario.name}'s mesh {mesh.path or mesh.name!r} has no such catalogue "
+                                    f"resolution; catalogue: { {k: sorted(v) for k, v in meshes.items()} }")
+        return replace(self, scenarios=tuple(
+            replace(m, scenario=replace(m.scenario, mesh=replace(m.scenario.mesh, resolution=resolution)))
+            for m in self.scenarios))
+
     @property
     def train(self) -> tuple[SuiteMember, ...]:
         """The training members, in suite order."""

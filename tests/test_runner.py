@@ -12,7 +12,8 @@ import pytest
 from frictionbench.bench.cli import main, resolve_jobs
 from frictionbench.bench.executors import usable_cores
 from frictionbench.bench.runner import Task, run_suite, run_tasks
-from frictionbench.bench.store import RunStore
+from frictionbench.bench.store import RunStore, load_run_info
+from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import scenario_from_dict
 from frictionbench.scenarios.suites import load_suite
 
@@ -272,6 +273,25 @@ def test_only_runs_the_matching_members(tmp_path, suite_file):
     assert set(pd.read_csv(out / "results.csv")["scenario"]) == {"tiny/mu0.2"}
     assert main(["run", "--suite", str(suite_file), "--solvers", "full", "--only", "nothing*", "--out", str(out),
                  "--no-report"]) == 2
+
+
+def test_resolution_runs_every_member_on_its_shapes_other_catalogue_mesh(tmp_path, suite_file):
+    """`--resolution coarse_alt`: the same members on the shape's other mesh, recorded in run.json; a resolution
+    the catalogue does not have for a member's shape is refused before any run, naming the option."""
+    out = tmp_path / "out"
+    assert main(["run", "--suite", str(suite_file), "--solvers", "full", "--only", "tiny/*0.2", "--resolution",
+                 "coarse_alt", "--out", str(out), "--no-report", "--no-truth"]) == 0
+    results = pd.read_csv(out / "results.csv")
+    assert set(results["scenario"]) == {"tiny/mu0.2"} and set(results["mesh"]) == {"block/coarse_alt"}
+    assert load_run_info(out)["resolution"] == "coarse_alt"
+    suite = load_suite(suite_file)
+    assert suite.at_resolution(None) is suite
+    assert {m.scenario.mesh.key for m in suite.at_resolution("medium").scenarios} == {"block/medium"}
+    with pytest.raises(ScenarioError, match="--resolution.*'huge'.*no such catalogue resolution"):
+        suite.at_resolution("huge")
+    assert main(["run", "--suite", str(suite_file), "--solvers", "full", "--resolution", "huge", "--out",
+                 str(tmp_path / "bad"), "--no-report", "--no-truth"]) == 2
+    assert not (tmp_path / "bad" / "runs").exists() or not any((tmp_path / "bad" / "runs").iterdir())
 
 
 @pytest.mark.parametrize("suite", ["quick", "paper", "paper-damped", "hard"])
