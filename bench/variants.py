@@ -115,6 +115,12 @@ NEWTON_VBD = [NEWTON_VBD_DEFAULT,
 AFFINE_R24 = Variant("licrom", LICROM_AFFINE, label="affine-r24")
 AFFINE_R24_CUB60 = Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60")
 
+#: The cubature variant with contact lagged to each step's fixed point (`contact.lag = "fixed-point"`, as the truth
+#: ladders of paper-damped run) instead of the scene's start of the step, on the same trained model: whether a
+#: reduced curve's floor is the reduced dynamics or the start-of-step lag of friction's normal pressure.
+AFFINE_R24_CUB60_FIXED_POINT = replace(AFFINE_R24_CUB60, label="affine-r24-cub60-fixed-point", model="affine-r24-cub60",
+                                       overrides={"contact.lag": "fixed-point"})
+
 #: The ranks of the `licrom-rank` sweep: LiCROM with the affine columns, every tet (r counts the 12 affine columns,
 #: so r = 12 is the affine subspace alone, the `affine12` baseline, which the set runs as its first point).
 RANKS = (24, 48, 96)
@@ -145,9 +151,11 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
             Variant("pod", {"r": 20}, label="r20-remesh", remesh="alt", model="r20")],
     "affine": [AFFINE12],
     # LiCROM+affine r = 24 (every tet, 60 optimised cubature tets) each on its own step ladder: dt, dt/2, dt/4, dt/8
-    # under the scene's integrator and BDF2, each level on the base variant's trained model; each curve on the
-    # frontier beside the full-space ladder, with what floors it (`analysis.curves`; issue 22, point 1; on demand)
-    "licrom-ladder": [*step_ladder(AFFINE_R24), *step_ladder(AFFINE_R24_CUB60, twin=AFFINE_R24)],
+    # under the scene's integrator and BDF2, each level on the base variant's trained model, and the cubature one
+    # under BDF2 with contact lagged to the fixed point; each curve on the frontier beside the full-space ladder, with
+    # what floors it (`analysis.curves`; issue 22, point 1; on demand)
+    "licrom-ladder": [*step_ladder(AFFINE_R24), *step_ladder(AFFINE_R24_CUB60, twin=AFFINE_R24),
+                      *step_ladder(AFFINE_R24_CUB60_FIXED_POINT, integrators=("bdf2",))],
     # LiCROM's rank swept, every tet (the affine subspace alone as r = 12, then a grid over the solver's declared
     # parameters; on demand): what the subspace can hold against what it costs (issue 22, point 3)
     "licrom-rank": lambda: [AFFINE12, *grid("licrom", "affine-r{r}", LICROM_AFFINE, r=list(RANKS))],

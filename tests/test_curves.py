@@ -50,9 +50,14 @@ def test_a_step_ladder_halves_the_step_keeps_the_frames_and_shares_the_model():
 
 def test_the_licrom_ladder_set_is_two_curves_per_cubature_and_in_no_default():
     ladder = variant_set("licrom-ladder")
-    assert len(ladder) == 16 and {v.curve for v in ladder} == {"affine-r24", "affine-r24-bdf2", "affine-r24-cub60",
-                                                               "affine-r24-cub60-bdf2"}
+    assert len(ladder) == 20 and {v.curve for v in ladder} == {"affine-r24", "affine-r24-bdf2", "affine-r24-cub60",
+                                                               "affine-r24-cub60-bdf2",
+                                                               "affine-r24-cub60-fixed-point-bdf2"}
     assert {v.params["cubature"] for v in ladder} == {"all", "optimized:60"}
+    fixed_point = [v for v in ladder if v.curve == "affine-r24-cub60-fixed-point-bdf2"]
+    sc = scenario_from_dict(block_drop() | {"name": "s"})
+    assert all(v.scenario(sc).contact.lag == "fixed-point" and v.model == "affine-r24-cub60" for v in fixed_point)
+    assert all(v.scenario(sc).contact.lag == "start" for v in ladder if v not in fixed_point)
     assert all("licrom-ladder" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
