@@ -121,6 +121,30 @@ AFFINE_R24_CUB60 = Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"
 AFFINE_R24_CUB60_FIXED_POINT = replace(AFFINE_R24_CUB60, label="affine-r24-cub60-fixed-point", model="affine-r24-cub60",
                                        overrides={"contact.lag": "fixed-point"})
 
+#: The `rank-dynamics` set, before it is moved to the truth ladders' step settings: POD with the affine columns
+#: trained on the truths (the best a linear subspace of its size holds, the members' own answers in it) at r = 12
+#: (the affine fields alone), 36 and 84 on every tet; LiCROM+affine at r = 48 and 96 on an optimised cubature of
+#: 2.5 r tets, trained on the references and on the truths; r = 96 on every tet as well (the cubature's share).
+RANK_DYNAMICS = [
+    *(Variant("pod", {"r": r, "affine": True}, label=f"pod-affine-r{r}-truthdata", training="truth")
+      for r in (12, 36, 84)),
+    *(Variant("licrom", LICROM_AFFINE | {"r": r, "cubature": cubature},
+              label=f"affine-r{r}{'-cub' + cubature.split(':')[1] if ':' in cubature else ''}"
+                    f"{'-truthdata' if data == 'truth' else ''}", training=data)
+      for r, cubature in ((48, "optimized:120"), (96, "optimized:240"), (96, "all")) for data in ("reference", "truth")),
+]
+
+
+def at_truth_step(variant: Variant) -> Variant:
+    """The variant under the truth ladders' integrator and contact lag (BDF2, contact at each step's fixed point,
+    `contact.lag = "fixed-point"`) at dt/4 of the scene's step, where the paper-damped ladders are about 1% of L
+    from their truths: what a variant misses there is its reduction's error, not its step's. Labelled
+    `<label>-fixed-point-bdf2-dt/4`; a one-level `step_ladder`."""
+    fixed_point = replace(variant, label=f"{variant.label}-fixed-point",
+                          overrides=variant.overrides | {"contact.lag": "fixed-point"})
+    return step_ladder(fixed_point, levels=(2,), integrators=("bdf2",))[0]
+
+
 #: The ranks of the `licrom-rank` sweep: LiCROM with the affine columns, every tet (r counts the 12 affine columns,
 #: so r = 12 is the affine subspace alone, the `affine12` baseline, which the set runs as its first point).
 RANKS = (24, 48, 96)
@@ -163,6 +187,10 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # every other set, and on their truths, side by side (issue 22, point 3; on demand; a run without a truth gives
     # the truth-trained ones failed rows saying so)
     "licrom-training": [AFFINE_R24, AFFINE_R24_TRUTHDATA, AFFINE_R24_CUB60, AFFINE_R24_CUB60_TRUTHDATA],
+    # the reduced dynamics against rank at the truth ladders' own step settings (`at_truth_step`; issue 22, point 3;
+    # on demand; needs a truth): which rank the reduced dynamics, not only the subspace, need to reach the ladder's
+    # range, and what it costs
+    "rank-dynamics": lambda: [at_truth_step(v) for v in RANK_DYNAMICS],
     # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh
     # (the other mesh of the shape, carried onto the reference mesh for the comparison), the second-order integrator
     "full-sweep": [Variant("full", {"tol": 1e-3}, label="tol1e-3"),

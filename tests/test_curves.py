@@ -61,6 +61,22 @@ def test_the_licrom_ladder_set_is_two_curves_per_cubature_and_in_no_default():
     assert all("licrom-ladder" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
+def test_the_rank_dynamics_set_runs_every_variant_at_the_truth_ladders_step_settings():
+    sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
+    rank = variant_set("rank-dynamics")
+    assert len(rank) == 9 and len({v.label for v in rank}) == 9
+    for v in rank:
+        level = v.scenario(sc)
+        assert (level.time.dt, level.time.frame_every) == (pytest.approx(0.0025), 8)
+        assert (level.time.integrator, level.contact.lag) == ("bdf2", "fixed-point")
+        assert v.label.endswith("-fixed-point-bdf2-dt/4")
+    assert {v.params["r"] for v in rank if v.solver == "pod"} == {12, 36, 84}
+    assert all(v.training == "truth" for v in rank if v.solver == "pod")
+    assert {(v.params["r"], v.training) for v in rank if v.solver == "licrom"} == {
+        (r, data) for r in (48, 96) for data in ("reference", "truth")}
+    assert all("rank-dynamics" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
+
+
 def test_every_level_of_a_licrom_ladder_trains_nothing_of_its_own(tmp_path: Path, licrom_trainings):
     """prepare (what `bench.training.prepare_variants` calls per variant) resolves every level to the one
     checkpoint, trained once."""
