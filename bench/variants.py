@@ -128,16 +128,16 @@ AFFINE_R24_CUB60_FIXED_POINT = replace(AFFINE_R24_CUB60, label="affine-r24-cub60
 RANK_DYNAMICS = [
     *(Variant("pod", {"r": r, "affine": True}, label=f"pod-affine-r{r}-truthdata", training="truth")
       for r in (12, 36, 84)),
-    *(Variant("licrom", LICROM_AFFINE | {"r": r, "cubature": cubature},
-              label=f"affine-r{r}{'-cub' + cubature.split(':')[1] if ':' in cubature else ''}"
-                    f"{'-truthdata' if data == 'truth' else ''}", training=data)
-      for r, cubature in ((48, "optimized:120"), (96, "optimized:240"), (96, "all")) for data in ("reference", "truth")),
+    *(Variant("licrom", LICROM_AFFINE | {"r": r, "cubature": cubature}, label=f"affine-r{r}{tag}{data_tag}",
+              training=data)
+      for r, cubature, tag in ((48, "optimized:120", "-cub120"), (96, "optimized:240", "-cub240"), (96, "all", ""))
+      for data, data_tag in (("reference", ""), ("truth", "-truthdata"))),
 ]
 
 
 def at_truth_step(variant: Variant) -> Variant:
-    """The variant under the truth ladders' integrator and contact lag (BDF2, contact at each step's fixed point,
-    `contact.lag = "fixed-point"`) at dt/4 of the scene's step, where the paper-damped ladders are about 1% of L
+    """The variant under the paper-damped truth ladders' integrator and contact lag (BDF2, contact at each step's
+    fixed point, `contact.lag = "fixed-point"`) at dt/4 of the scene's step, where those ladders are about 1% of L
     from their truths: what a variant misses there is its reduction's error, not its step's. Labelled
     `<label>-fixed-point-bdf2-dt/4`; a one-level `step_ladder`."""
     fixed_point = replace(variant, label=f"{variant.label}-fixed-point",
