@@ -123,11 +123,13 @@ AFFINE_R24_CUB60_FIXED_POINT = replace(AFFINE_R24_CUB60, label="affine-r24-cub60
 
 #: The `rank-dynamics` set, before it is moved to the truth ladders' step settings: POD with the affine columns
 #: trained on the truths (the best a linear subspace of its size holds, the members' own answers in it) at r = 12
-#: (the affine fields alone), 36 and 84 on every tet; LiCROM+affine at r = 48 and 96 on an optimised cubature of
+#: (the affine fields alone), 36 and 84 on every tet, and at 36 and 84 on the references (what a user without a
+#: truth can fit); LiCROM+affine at r = 48 and 96 on an optimised cubature of
 #: 2.5 r tets, trained on the references and on the truths; r = 96 on every tet as well (the cubature's share).
 RANK_DYNAMICS = [
     *(Variant("pod", {"r": r, "affine": True}, label=f"pod-affine-r{r}-truthdata", training="truth")
       for r in (12, 36, 84)),
+    *(Variant("pod", {"r": r, "affine": True}, label=f"pod-affine-r{r}") for r in (36, 84)),
     *(Variant("licrom", LICROM_AFFINE | {"r": r, "cubature": cubature}, label=f"affine-r{r}{tag}{data_tag}",
               training=data)
       for r, cubature, tag in ((48, "optimized:120", "-cub120"), (96, "optimized:240", "-cub240"), (96, "all", ""))
