@@ -115,17 +115,23 @@ NEWTON_VBD = [NEWTON_VBD_DEFAULT,
 AFFINE_R24 = Variant("licrom", LICROM_AFFINE, label="affine-r24")
 AFFINE_R24_CUB60 = Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60")
 
-#: The cubature variant with contact lagged to each step's fixed point (`contact.lag = "fixed-point"`, as the truth
-#: ladders of paper-damped run) instead of the scene's start of the step, on the same trained model: whether a
-#: reduced curve's floor is the reduced dynamics or the start-of-step lag of friction's normal pressure.
-AFFINE_R24_CUB60_FIXED_POINT = replace(AFFINE_R24_CUB60, label="affine-r24-cub60-fixed-point", model="affine-r24-cub60",
-                                       overrides={"contact.lag": "fixed-point"})
+
+def at_fixed_point(variant: Variant) -> Variant:
+    """The variant with contact lagged to each step's fixed point (`contact.lag = "fixed-point"`, as the truth ladders
+    of paper-damped run) instead of the scene's start of the step; labelled `<label>-fixed-point`."""
+    return replace(variant, label=f"{variant.label}-fixed-point",
+                   overrides=variant.overrides | {"contact.lag": "fixed-point"})
+
+
+#: The cubature variant at the fixed point, on its trained model: whether a reduced curve's floor is the reduced
+#: dynamics or the start-of-step lag of friction's normal pressure.
+AFFINE_R24_CUB60_FIXED_POINT = replace(at_fixed_point(AFFINE_R24_CUB60), model=AFFINE_R24_CUB60.label)
 
 #: The `rank-dynamics` set, before it is moved to the truth ladders' step settings: POD with the affine columns
 #: trained on the truths (the best a linear subspace of its size holds, the members' own answers in it) at r = 12
 #: (the affine fields alone), 36 and 84 on every tet, and at 36 and 84 on the references (what a user without a
-#: truth can fit); LiCROM+affine at r = 48 and 96 on an optimised cubature of
-#: 2.5 r tets, trained on the references and on the truths; r = 96 on every tet as well (the cubature's share).
+#: truth can fit); LiCROM+affine at r = 48 and 96 on an optimised cubature of 2.5 r tets, trained on the references
+#: and on the truths; r = 96 on every tet as well (the cubature's share).
 RANK_DYNAMICS = [
     *(Variant("pod", {"r": r, "affine": True}, label=f"pod-affine-r{r}-truthdata", training="truth")
       for r in (12, 36, 84)),
@@ -141,10 +147,8 @@ def at_truth_step(variant: Variant) -> Variant:
     """The variant under the paper-damped truth ladders' integrator and contact lag (BDF2, contact at each step's
     fixed point, `contact.lag = "fixed-point"`) at dt/4 of the scene's step, where those ladders are about 1% of L
     from their truths: what a variant misses there is its reduction's error, not its step's. Labelled
-    `<label>-fixed-point-bdf2-dt/4`; a one-level `step_ladder`."""
-    fixed_point = replace(variant, label=f"{variant.label}-fixed-point",
-                          overrides=variant.overrides | {"contact.lag": "fixed-point"})
-    return step_ladder(fixed_point, levels=(2,), integrators=("bdf2",))[0]
+    `<label>-fixed-point-bdf2-dt/4`; a one-level `step_ladder` of `at_fixed_point`."""
+    return step_ladder(at_fixed_point(variant), levels=(2,), integrators=("bdf2",))[0]
 
 
 #: The ranks of the `licrom-rank` sweep: LiCROM with the affine columns, every tet (r counts the 12 affine columns,
