@@ -292,8 +292,8 @@ def cmd_gate(args: argparse.Namespace) -> int:
     for v in failed:
         print(f"FAIL {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit})")
     for v in undecidable:
-        print(f"UNDECIDABLE {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit}; the "
-              "scenario's truth is uncertified and its error estimate too large to judge this limit)")
+        print(f"UNDECIDABLE {v.gate}: {v.scenario} [{v.variant}] {v.metric} = {v.value} (limit: {v.limit}; "
+              f"{v.reason})")
     advisory = [v for v in verdicts if v.advisory]
     if advisory:
         print(f"advisory checks (reported, not enforced): {sum(v.passed for v in advisory)} of {len(advisory)} met; "

@@ -242,7 +242,7 @@ def compare_results(base: pd.DataFrame, new: pd.DataFrame, rules: Sequence[Rule]
                                                                                   for v in crossed)]))
             undecided = [v for v in gate_n if v.status == "undecidable"]  # neither passed nor failed: no regression
             if undecided:
-                reason = "; ".join(filter(None, [reason, *(f"gate {v.limit} undecidable (uncertified truth)"
+                reason = "; ".join(filter(None, [reason, *(f"gate {v.limit} undecidable ({v.reason})"
                                                            for v in undecided)]))
             gate = "; ".join(dict.fromkeys(f"{v.limit}{' (advisory)' if v.advisory else ''}" for v in gate_n))
             nb, nn = number(vb), number(vn)

@@ -47,7 +47,7 @@ STATUSES: tuple[str, ...] = ("passed", "failed", "undecidable")
 @dataclass(frozen=True)
 class Verdict:
     """One gate checked on one results row: `status` one of STATUSES, `passed` true only when it passed (an
-    undecidable verdict has passed = False and is no failure either)."""
+    undecidable verdict has passed = False and is no failure either; `reason` says why it could not be judged)."""
 
     gate: str
     scenario: str
@@ -58,6 +58,7 @@ class Verdict:
     passed: bool
     advisory: bool = False
     status: str = "failed"
+    reason: str = ""
 
     @property
     def failed(self) -> bool:
@@ -91,24 +92,36 @@ def _passes(value: object, gate: dict) -> bool:
     return ("max" not in gate or v <= gate["max"]) and ("min" not in gate or v >= gate["min"])
 
 
-def _undecidable(row: pd.Series, gate: dict) -> bool:
-    """Whether a gate's verdict on a row cannot be judged: a `max` on an error against an uncertified truth whose
-    estimate is too large for the limit (`analysis.truth.decidable`; for an outcome's error, the truth's certificate
-    and estimate of that outcome), or a gate on the speedup at equal accuracy
-    of a row more accurate than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on
-    it met only by an upper bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
+#: Why a verdict is undecidable (`Verdict.reason`), per cause.
+UNCERTIFIED = "the scenario's truth is uncertified and its error estimate too large to judge this limit"
+OUTCOME_UNCERTIFIED = ("the truth's ladder did not certify this outcome and its estimate is too large to judge this "
+                       "limit")
+NO_LADDER_COST = "the row is more accurate than its whole ladder: no full-space cost to compare with"
+BOUND_ONLY = ("an upper bound (the row is less accurate than the ladder's coarsest run) at or above the limit proves "
+              "nothing")
+
+
+def undecidable_reason(row: pd.Series, gate: dict) -> str:
+    """Why a gate's verdict on a row cannot be judged ("" where it can): a `max` on an error against an uncertified
+    truth whose estimate is too large for the limit (`analysis.truth.decidable`; for an outcome's error, the truth's
+    certificate and estimate of that outcome), or a gate on the speedup at equal accuracy of a row more accurate
+    than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on it met only by an upper
+    bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
     if gate["metric"] == "speedup_equal_accuracy":
         if is_missing(row.get("speedup_equal_accuracy")):
-            return row.get("frontier_note") == MORE_ACCURATE
-        return row.get("frontier_note") == AT_MOST and "min" in gate and _passes(row["speedup_equal_accuracy"], gate)
+            return NO_LADDER_COST if row.get("frontier_note") == MORE_ACCURATE else ""
+        bound = row.get("frontier_note") == AT_MOST and "min" in gate and _passes(row["speedup_equal_accuracy"], gate)
+        return BOUND_ONLY if bound else ""
     outcome = outcome_of(gate["metric"])
     if "max" not in gate or not (gate["metric"] in TRUTH_METRICS or gate.get("against_truth") or outcome):
-        return False
+        return ""
     certified, est = ((outcome.certified_column, outcome.est_column) if outcome
                       else ("truth_certified", "truth_err_est"))
     if est not in row and certified not in row:
-        return False  # no truth for these results: judged as before
-    return not decidable(float(gate["max"]), truthy(row.get(certified)), number(row.get(est)))
+        return ""  # no truth for these results: judged as before
+    if decidable(float(gate["max"]), truthy(row.get(certified)), number(row.get(est))):
+        return ""
+    return OUTCOME_UNCERTIFIED if outcome else UNCERTIFIED
 
 
 def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]:
@@ -137,7 +150,8 @@ def check(results: pd.DataFrame, gates: list[dict], suite: str) -> list[Verdict]
             verdicts.append(Verdict(name, "(none)", str(wanted), gate["metric"], None, limit, False, advisory))
         for _, row in rows.iterrows():
             value = row.get(gate["metric"])
-            status = ("undecidable" if _undecidable(row, gate) else "passed" if _passes(value, gate) else "failed")
+            reason = undecidable_reason(row, gate)
+            status = "undecidable" if reason else "passed" if _passes(value, gate) else "failed"
             verdicts.append(Verdict(name, row["scenario"], labels[row.name], gate["metric"], value, limit,
-                                    status == "passed", advisory, status))
+                                    status == "passed", advisory, status, reason))
     return verdicts

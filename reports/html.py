@@ -136,7 +136,7 @@ def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
         counts = binding["status"].value_counts()
         n_pass, n_fail, n_und = (int(counts.get(k, 0)) for k in ("passed", "failed", "undecidable"))
         ok = n_fail == 0
-        undecidable = f", {n_und} undecidable (threshold below the truth's error)" if n_und else ""
+        undecidable = f", {n_und} undecidable (neither passed nor failed: the verdicts say why)" if n_und else ""
         parts.append(f'<li><span class="banner {"pass" if ok else "fail"}">'
                      + html.escape(f"Gates: {n_pass} of {len(binding)} passed"
                                    f"{'' if ok else f', {n_fail} failed'}{undecidable}.") + "</span></li>")
@@ -439,7 +439,8 @@ def _stability_matrix(gates: Sequence[object]) -> str:
         body.append("<tr>" + "".join(tds) + "</tr>")
     return (_note("Cases against the gates and advisory checks (gates.toml) per solver variant and contact law: "
                   "pass, or the metrics that failed (or, where none failed, those undecidable: an accuracy "
-                  "threshold below 3x an uncertified truth's error estimate).")
+                  "threshold below 3x an uncertified truth's error estimate, or a speed limit met only by an "
+                  "upper bound).")
             + f'<div class="scroll"><table class="stability-matrix">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
             + "\n".join(body) + "\n</tbody>\n</table></div>")
 

@@ -16,9 +16,9 @@ from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel, proj_r
 from frictionbench.analysis.truth import certified_horizon, richardson
 from frictionbench.bench.cli import main
 from frictionbench.bench.compare import compare_results
-from frictionbench.bench.gates import check
+from frictionbench.bench.gates import BOUND_ONLY, NO_LADDER_COST, UNCERTIFIED, check, load_gates
 from frictionbench.bench.runner import Variant, run_suite
-from frictionbench.bench.variants import DT_HALF
+from frictionbench.bench.variants import DEFAULT as DEFAULT_SETS, DT_HALF, variant_set
 from frictionbench.bench.store import RunStore
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.suites import load_suite, suite_from_dict
@@ -116,8 +116,9 @@ GATES = [{"suite": "quick", "variant": "licrom/m", "metric": "err_truth", "max":
 
 
 def test_an_uncertified_truth_makes_a_tight_accuracy_verdict_undecidable():
-    statuses = [v.status for v in check(_truth_rows(certified=False, est=0.01), GATES, "quick")]
-    assert statuses == ["undecidable", "passed", "undecidable"]  # 0.02 < 3 x 0.01; pos_rmse_rel only if marked
+    verdicts = check(_truth_rows(certified=False, est=0.01), GATES, "quick")
+    assert [v.status for v in verdicts] == ["undecidable", "passed", "undecidable"]  # 0.02 < 3 x 0.01; pos_rmse_rel
+    assert [v.reason for v in verdicts] == [UNCERTIFIED, "", UNCERTIFIED]  # only where marked against_truth
     assert not any(v.passed or v.failed for v in check(_truth_rows(False, 0.01), GATES[:1], "quick"))
     assert [v.status for v in check(_truth_rows(False, 0.005), GATES, "quick")] == ["passed"] * 3  # 0.02 >= 0.015
     assert [v.status for v in check(_truth_rows(True, 0.05), GATES, "quick")] == ["passed"] * 3  # certified
@@ -173,7 +174,8 @@ def test_a_speedup_gate_on_a_run_more_accurate_than_the_ladder_is_undecidable():
                           "status": "ok", "speedup_equal_accuracy": None, "frontier_note": note}
                          for note in ("more accurate than the ladder", "no ladder")])
     gate = {"suite": "quick", "variant": "licrom/m", "metric": "speedup_equal_accuracy", "min": 10.0}
-    assert [v.status for v in check(rows, [gate], "quick")] == ["undecidable", "failed"]
+    verdicts = check(rows, [gate], "quick")
+    assert [(v.status, v.reason) for v in verdicts] == [("undecidable", NO_LADDER_COST), ("failed", "")]
 
 
 def test_a_speedup_gate_met_only_by_an_upper_bound_is_undecidable_and_a_bound_below_it_fails():
@@ -182,7 +184,27 @@ def test_a_speedup_gate_met_only_by_an_upper_bound_is_undecidable_and_a_bound_be
                           "status": "ok", "speedup_equal_accuracy": s, "frontier_note": n}
                          for i, (s, n) in enumerate([(20.0, note), (5.0, note), (20.0, "")])])
     gate = {"suite": "quick", "variant": "licrom/m", "metric": "speedup_equal_accuracy", "min": 10.0}
-    assert [v.status for v in check(rows, [gate], "quick")] == ["undecidable", "failed", "passed"]
+    verdicts = check(rows, [gate], "quick")
+    assert [v.status for v in verdicts] == ["undecidable", "failed", "passed"]
+    assert [v.reason for v in verdicts] == [BOUND_ONLY, "", ""]
+
+
+def test_the_shipped_speed_gates_bind_on_speed_at_equal_accuracy_and_not_on_per_step_speed():
+    gates = load_gates()
+    assert all(g.get("advisory") for g in gates if g["metric"] == "speedup")  # a ratio of step times: noise
+    binding = [g for g in gates if g["metric"] == "speedup_equal_accuracy" and not g.get("advisory")]
+    assert {g["suite"] for g in binding} == {"quick", "paper-damped"} and all("min" in g for g in binding)
+    labels = {f"{v.solver}/{v.label}" for name in ("licrom-ladder", "paper", *DEFAULT_SETS.split(","))
+              for v in variant_set(name)}
+    assert all(set(g["variant"] if isinstance(g["variant"], list) else [g["variant"]]) <= labels for g in binding)
+    damped = next(g for g in binding if g["suite"] == "paper-damped")
+    bound = "at most: less accurate than the coarsest ladder run"
+    cases = [(1.5, ""), (0.9, ""), (2.0, bound), (0.9, bound)]  # measured: passes, fails; bounds: nothing, fails
+    rows = pd.DataFrame([{"suite": "paper-damped", "scenario": f"paper-damped/{i}", "solver": "licrom",
+                          "variant": damped["variant"][-1].split("/", 1)[1], "status": "ok",
+                          "speedup_equal_accuracy": f * damped["min"], "frontier_note": note}
+                         for i, (f, note) in enumerate(cases)])
+    assert [v.status for v in check(rows, [damped], "paper-damped")] == ["passed", "failed", "undecidable", "failed"]
 
 
 def test_undecidable_is_no_failure_of_gate_nor_a_regression_of_compare(tmp_path: Path):

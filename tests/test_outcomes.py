@@ -19,7 +19,7 @@ from frictionbench.analysis.outcomes import (OutcomeScene, ladder_outcome_column
 from frictionbench.analysis.rows import collect_rows
 from frictionbench.analysis.schema import COLUMNS, OUTCOMES, outcome_of
 from frictionbench.analysis.table import write_results_csv
-from frictionbench.bench.gates import check, load_gates
+from frictionbench.bench.gates import OUTCOME_UNCERTIFIED, check, load_gates
 from frictionbench.bench.runner import StoreRuns, Task
 from frictionbench.scenarios.meshes import TetMesh, boundary_triangles
 from frictionbench.scenarios.model import Contact, Material, Plane, Scenario, TimeSpec
@@ -241,6 +241,7 @@ def test_a_gate_on_an_outcome_error_is_judged_against_that_outcomes_own_converge
     gate = {"suite": "paper-damped", "variant": "licrom/m", "metric": "slide_err_truth", "max": 0.025}
     status = lambda rows, g=gate: [v.status for v in check(rows, [g], "paper-damped")]  # noqa: E731
     assert status(outcome_rows(False, 0.01)) == ["undecidable"]  # 0.025 < 3 x 0.01, though positions certify
+    assert [v.reason for v in check(outcome_rows(False, 0.01), [gate], "paper-damped")] == [OUTCOME_UNCERTIFIED]
     assert status(outcome_rows(False, 0.005)) == ["passed"]  # 0.025 >= 0.015
     assert status(outcome_rows(True, 0.05)) == ["passed"]  # the outcome is certified
     assert status(outcome_rows(True, 0.05), gate | {"max": 0.01}) == ["failed"]
