@@ -23,7 +23,7 @@ uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor fai
 limit it fails, at or above it nothing is proven). A `max` gate on an outcome's error against the truth
 (`analysis.schema.OUTCOMES`, e.g. `slide_err_truth`) is judged against that outcome's own convergence: undecidable
 where the truth's ladder did not certify the outcome (`truth_<name>_certified`) and the limit is below 3x its
-estimate (`truth_<name>_est`).
+estimate (`truth_<name>_est`). An undecidable verdict's `reason` says which of these it is.
 """
 
 from __future__ import annotations
