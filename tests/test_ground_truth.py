@@ -18,7 +18,7 @@ from frictionbench.bench.cli import main
 from frictionbench.bench.compare import compare_results
 from frictionbench.bench.gates import BOUND_ONLY, NO_LADDER_COST, UNCERTIFIED, check, load_gates
 from frictionbench.bench.runner import Variant, run_suite
-from frictionbench.bench.variants import DEFAULT as DEFAULT_SETS, DT_HALF, variant_set
+from frictionbench.bench.variants import DT_HALF
 from frictionbench.bench.store import RunStore
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.suites import load_suite, suite_from_dict
@@ -194,9 +194,7 @@ def test_the_shipped_speed_gates_bind_on_speed_at_equal_accuracy_and_not_on_per_
     assert all(g.get("advisory") for g in gates if g["metric"] == "speedup")  # a ratio of step times: noise
     binding = [g for g in gates if g["metric"] == "speedup_equal_accuracy" and not g.get("advisory")]
     assert {g["suite"] for g in binding} == {"quick", "paper-damped"} and all("min" in g for g in binding)
-    labels = {f"{v.solver}/{v.label}" for name in ("licrom-ladder", "paper", *DEFAULT_SETS.split(","))
-              for v in variant_set(name)}
-    assert all(set(g["variant"] if isinstance(g["variant"], list) else [g["variant"]]) <= labels for g in binding)
+    # that their labels exist in the suites' default sets or a named set: tests/test_runner.py's guard over all gates
     damped = next(g for g in binding if g["suite"] == "paper-damped")
     bound = "at most: less accurate than the coarsest ladder run"
     cases = [(1.5, ""), (0.9, ""), (2.0, bound), (0.9, bound)]  # measured: passes, fails; bounds: nothing, fails
