@@ -42,7 +42,6 @@ VERSIONED_PACKAGES: dict[str, str] = {
     "scipy": "scipy_version",
     "torch": "torch_version",
     "warp-lang": "warp_version",
-    "taichi": "taichi_version",
     "mkl": "mkl_version",  # MKL PARDISO, the full-space solver's default linear solver (`linear_solver` per row)
 }
 

@@ -21,7 +21,7 @@ def usable_cores() -> int:
 
 
 class ProcessExecutor:
-    """A local pool of `jobs` worker processes (spawned: warp and taichi do not survive a fork)."""
+    """A local pool of `jobs` worker processes (spawned: warp and torch do not survive a fork)."""
 
     def __init__(self, jobs: int) -> None:
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))

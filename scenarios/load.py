@@ -484,7 +484,7 @@ def _number(value: object, field: str, *, gt: float | None = None, ge: float | N
 
 def _finite(x: float, field: str, context: str) -> float:
     """`x` unless it is nan or infinite; -0.0 and subnormal values become 0.0, so that equal scenarios hash
-    equally even in a process whose floating-point unit flushes subnormals to zero (as torch and taichi set)."""
+    equally even in a process whose floating-point unit flushes subnormals to zero (as torch sets)."""
     if not math.isfinite(x):
         raise ScenarioError(field, x, f"must be finite {context}".rstrip())
     return 0.0 if abs(x) < sys.float_info.min else x

@@ -1,6 +1,6 @@
 """The solver registry: solver name -> its `solvers.contract.Solver` class, the one place solvers are listed.
 
-Entries are import paths (`module:Class`), imported on first use, so that torch and taichi load only when a
+Entries are import paths (`module:Class`), imported on first use, so that torch loads only when a
 reduced solver runs, and so that a worker process can import a solver registered elsewhere (`entries`,
 `register_entries`). The harness never special-cases a solver: it looks it up here by name.
 

@@ -40,9 +40,7 @@ REPO = Path(__file__).resolve().parents[1]
 WORKER_SHELL = """set -e
 mount -t tmpfs tmpfs "$HIDE"
 mkdir -p "$PRIV/cache" "$PRIV/tmp"
-for kernels in warp taichi; do
-  if [ -d "$CLIENT_CACHE/$kernels" ]; then cp -a "$CLIENT_CACHE/$kernels" "$PRIV/cache/"; fi
-done
+if [ -d "$CLIENT_CACHE/warp" ]; then cp -a "$CLIENT_CACHE/warp" "$PRIV/cache/"; fi
 if [ -d "$CLIENT_CACHE" ]; then mount -t tmpfs tmpfs "$CLIENT_CACHE"; fi
 exec "$PYTHON" -m distributed.cli.dask_worker "$ADDRESS" --nthreads 1 --no-nanny --name "$NAME" \\
   --local-directory "$PRIV/tmp" --no-dashboard

@@ -117,30 +117,17 @@ def elastic_gradient_kernel(
         wp.atomic_add(grad, tet[a], vol[e] * (P * shape_gradient(Dmi, a)))
 
 
-@wp.kernel
-def elastic_hessian_kernel(
-    x: wp.array(dtype=wp.vec3d),
-    tets: wp.array(dtype=wp.vec4i),
-    Dm_inv: wp.array(dtype=wp.mat33d),
-    vol: wp.array(dtype=f64),
-    mu: f64,
-    lam: f64,
-    alpha: f64,
-    blocks: wp.array(dtype=wp.mat33d),
-):
-    """Per-element projected Hessian blocks (16 per tet) from the analytic SNH eigensystem.
+@wp.func
+def snh_eigensystem(F: wp.mat33d, mu: f64, lam: f64, alpha: f64):
+    """The analytic eigensystem of the SNH dP/dF (9x9) at F, in the rotation-variant SVD F = U diag(s) V^T
+    (det U = det V = 1): returns (U, s, V, Qs, ls, ca, cc) for `snh_mode`.
 
     dP/dF = a I + b f f^T + d g g^T + c d2J/dF2 with a = mu (1 - 1/(I_C+1)), b = 2 mu/(I_C+1)^2, c = lam (J -
-    alpha), d = lam. In the (rotation) SVD frame F = U diag(s) V^T its eigen-matrices are: per index pair (i, j)
-    with k the third, a twist U (e_i e_j^T - e_j e_i^T) V^T / sqrt 2 (a + c s_k) and a flip with + (a - c s_k);
-    the three scaling modes U diag(w) V^T with w the eigenvectors of the 3x3 matrix
-    A_ij = a delta_ij + b s_i s_j + d g_i g_j + c s_k [i != j], g = (s1 s2, s0 s2, s0 s1).
-    Negative eigenvalues are dropped (PSD projection).
+    alpha), d = lam, f = vec F, g = vec cof F. Its eigen-matrices are, per index pair (i, j) with k the third, a
+    twist U (e_i e_j^T - e_j e_i^T) V^T / sqrt 2 with eigenvalue a + c s_k, a flip with + and eigenvalue a - c s_k,
+    and three scaling modes U diag(w) V^T with w the eigenvectors (columns of Qs, eigenvalues ls) of the 3x3 matrix
+    A_ij = a delta_ij + b s_i s_j + d g_i g_j + c s_k [i != j], g = (s1 s2, s0 s2, s0 s1); ca = a, cc = c.
     """
-    e = wp.tid()
-    tet = tets[e]
-    Dmi = Dm_inv[e]
-    F = deformation_gradient(x, tet, Dmi)
     U = wp.mat33d()
     s = wp.vec3d()
     V = wp.mat33d()
@@ -169,21 +156,49 @@ def elastic_hessian_kernel(
     Qs = wp.mat33d()
     ls = wp.vec3d()
     wp.eig3(A, Qs, ls)
+    return U, s, V, Qs, ls, ca, cc
+
+
+@wp.func
+def snh_mode(U: wp.mat33d, s: wp.vec3d, V: wp.mat33d, Qs: wp.mat33d, ls: wp.vec3d, ca: f64, cc: f64, m: int):
+    """Eigen-matrix m (unit Frobenius norm) of dP/dF and its eigenvalue, from `snh_eigensystem`'s output: m = 0-2
+    the scaling modes, then per k = 0, 1, 2 the twist (m = 3 + 2k) and the flip (m = 4 + 2k) about axis k."""
     Vt = wp.transpose(V)
-    base = 16 * e
-    for m in range(3):
-        w = wp.vec3d(Qs[0, m], Qs[1, m], Qs[2, m])
-        add_mode(blocks, base, U * wp.diag(w) * Vt, vol[e] * ls[m], Dmi)
+    if m < 3:
+        return U * wp.diag(wp.vec3d(Qs[0, m], Qs[1, m], Qs[2, m])) * Vt, ls[m]
+    k = (m - 3) // 2
+    i = (k + 1) % 3
+    j = (k + 2) % 3
     r = f64(0.7071067811865476)
-    for k in range(3):
-        i = (k + 1) % 3
-        j = (k + 2) % 3
-        E = wp.mat33d()
-        E[i, j] = r
+    E = wp.mat33d()
+    E[i, j] = r
+    if (m - 3) % 2 == 0:
         E[j, i] = -r
-        add_mode(blocks, base, U * E * Vt, vol[e] * (ca + cc * s[k]), Dmi)
-        E[j, i] = r
-        add_mode(blocks, base, U * E * Vt, vol[e] * (ca - cc * s[k]), Dmi)
+        return U * E * Vt, ca + cc * s[k]
+    E[j, i] = r
+    return U * E * Vt, ca - cc * s[k]
+
+
+@wp.kernel
+def elastic_hessian_kernel(
+    x: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    Dm_inv: wp.array(dtype=wp.mat33d),
+    vol: wp.array(dtype=f64),
+    mu: f64,
+    lam: f64,
+    alpha: f64,
+    blocks: wp.array(dtype=wp.mat33d),
+):
+    """Per-element projected Hessian blocks (16 per tet) from the analytic SNH eigensystem (`snh_eigensystem`):
+    every mode with a positive eigenvalue (PSD projection)."""
+    e = wp.tid()
+    tet = tets[e]
+    Dmi = Dm_inv[e]
+    U, s, V, Qs, ls, ca, cc = snh_eigensystem(deformation_gradient(x, tet, Dmi), mu, lam, alpha)
+    for m in range(9):
+        Q, lam_v = snh_mode(U, s, V, Qs, ls, ca, cc, m)
+        add_mode(blocks, 16 * e, Q, vol[e] * lam_v, Dmi)
 
 
 @wp.kernel

@@ -1,1 +1,1 @@
-"""LiCROM reduced-order solver: neural-field subspace training (torch), cubature, online dynamics (taichi)."""
+"""LiCROM reduced-order solver: neural-field subspace training (torch), cubature, online dynamics (warp kernel)."""

@@ -58,7 +58,7 @@ from frictionbench.solvers.model import Model, State
 from frictionbench.solvers.newton import Direction, LineSearch, NewtonResult, minimise
 from frictionbench.solvers.physics.contact import signed_distance
 from frictionbench.solvers.physics.inertia import lumped_mass
-from frictionbench.solvers.physics.material import shape_gradients, snh_energy_density
+from frictionbench.solvers.physics.material import shape_gradients
 from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, terms_of
 from frictionbench.solvers.step import ContactLag, StepProblem, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
@@ -66,11 +66,6 @@ from frictionbench.solvers.step_stats import StepStats
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
 """Jacobians B with at most this fraction of non-zeros and at least this many columns (local bases such as
 `full_basis`) use sparse products; below, the dense r x r work is cheaper than sparse bookkeeping."""
-
-NUMPY_ENERGY_MAX_TETS = 400
-"""Cubatures of at most this many tets take their energy-only evaluation (the line search's) from the numpy
-reference rather than the taichi kernel: measured on dev-2c (one thread), numpy 47 us against the kernel's 268 us
-(its launch) at 58 tets, 132 against 274 at 300, 609 against 234 at 1000."""
 
 EXTREME_ROWS = 64
 """Rows of W (3n x r) with the largest norms whose |W dq|_inf alone decides most Newton iterations' convergence
@@ -101,7 +96,8 @@ class ReducedModel:
     contact sample vertices and their area weights [m^2]; Xp: (p, 3) their rest positions; Wp: (p, 3, r) the basis
     there; with a plane n . x = d, phi_rest (p,) [m] the points' rest signed distances n . X_p - d and N (p, r)
     [m per unit q] the rows n^T W_p, so that phi_p(q) = phi_rest_p + N_p q (None without a plane); W_extreme
-    (k, r) the EXTREME_ROWS rows of W (3n x r) with the largest norms.
+    (k, r) the EXTREME_ROWS rows of W (3n x r) with the largest norms; device: where the elastic kernel runs
+    ("cpu" or "cuda", `solvers.licrom.kernels`).
     """
 
     model: Model
@@ -120,15 +116,19 @@ class ReducedModel:
     phi_rest: np.ndarray | None
     N: np.ndarray | None
     W_extreme: np.ndarray
+    device: str = "cpu"
 
     @classmethod
     def build(cls, model: Model, W: np.ndarray, cubature: Cubature | None = None,
-              contact_samples: int | None = None, seed: int = 0) -> "ReducedModel":
+              contact_samples: int | None = None, seed: int = 0, device: str = "cpu") -> "ReducedModel":
         """Precompute everything for the basis W (n, 3, r) on `model`'s mesh.
 
         cubature: (tet ids, weights), None for every tet with weight 1. contact_samples: keep that many of the
         model's contact points (uniformly at random, `seed`), areas re-weighted to keep the total; None keeps all.
+        device: where the elastic kernel runs ("cpu" or "cuda").
         """
+        if device not in K.DEVICES:
+            raise ValueError(f"device = {device!r}: expected one of {K.DEVICES}")
         n, r = model.n, W.shape[2]
         if W.shape != (n, 3, r):
             raise ValueError(f"basis shape {W.shape}: expected ({n}, 3, r) for this mesh")
@@ -150,7 +150,7 @@ class ReducedModel:
                    B_sparse=sp.csr_matrix(Bf) if sparse else None, points=points, area=area, Xp=Xp, Wp=Wp,
                    phi_rest=None if n is None else signed_distance(Xp, n, model.plane_offset),
                    N=None if n is None else np.ascontiguousarray(np.einsum("pak,a->pk", Wp, n)),
-                   W_extreme=Wf[np.argsort(np.linalg.norm(Wf, axis=1))[-EXTREME_ROWS:]])
+                   W_extreme=Wf[np.argsort(np.linalg.norm(Wf, axis=1))[-EXTREME_ROWS:]], device=device)
 
     @property
     def r(self) -> int:
@@ -175,14 +175,9 @@ class ReducedModel:
 
     def elastic(self, q: np.ndarray, mode: int) -> tuple[float, np.ndarray | None, np.ndarray | None]:
         """Cubature elastic energy [J], its gradient (r,) [N] (mode >= STRESS) and PSD-projected Hessian (r, r)
-        [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c). The energy alone (the line
-        search's) of a small cubature (NUMPY_ENERGY_MAX_TETS) comes from the numpy reference `snh_energy_density`:
-        a few vectorised operations cost less than a kernel launch (equal to round-off)."""
+        [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c). One kernel launch."""
         m = self.model
-        F = self.deformation_gradients(q)
-        if mode == K.ENERGY and self.wV.size <= NUMPY_ENERGY_MAX_TETS:
-            return float(self.wV @ snh_energy_density(F, m.mu_snh, m.lam_snh)), None, None
-        psi, P, H9 = K.snh_evaluate(F, m.mu_snh, m.lam_snh, mode)
+        psi, P, H9 = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode, self.device)
         return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None,
                                                         H9 if mode == K.HESSIAN else None)
 
@@ -304,7 +299,7 @@ class ReducedSolver:
     docstring.
 
     model: the scene on the mesh W was evaluated on; cubature: (tet ids, weights) or None for every tet (weight
-    1); scheme: "newton" or "projected_gradient"; device: where the taichi kernels run ("cpu" or "cuda");
+    1); scheme: "newton" or "projected_gradient"; device: where the elastic kernel runs ("cpu" or "cuda");
     tol: convergence |W dq|_inf / h < tol * L [1/s]; max_iter: iterations per step; alpha: the
     projected-gradient step size [-]; contact_samples, seed: contact point subsampling (None keeps all);
     armijo, max_halvings: Newton line search; contact_candidates: evaluate the point terms at the candidate
@@ -328,9 +323,8 @@ class ReducedSolver:
         if not 0.0 < velocity_scale <= 1.0:
             raise ValueError(f"velocity_scale = {velocity_scale!r}: expected a factor in (0, 1]")
         self.fixed_iterations, self.velocity_scale = fixed_iterations, velocity_scale
-        K.init_taichi(device)
         self.model = model
-        self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed)
+        self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed, device)
         self.scheme, self.tol, self.max_iter, self.alpha = scheme, tol, max_iter, alpha
         self.armijo, self.max_halvings = armijo, max_halvings
         if name is not None:

@@ -121,7 +121,7 @@ class _Elasticity(BodyEvaluation):
     def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
         """The cubature tets' elastic forces w_c V_c P_c g_a on their vertices."""
         m, rm = self.rs.model, self.rs.reduced
-        _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS)
+        _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS, rm.device)
         return self.rs.samples.forces(rm.wV, P)
 
 
