@@ -19,7 +19,7 @@ from frictionbench.bench.cli import resolve_scenario
 from frictionbench.scenarios.meshes import load_mesh
 from frictionbench.scenarios.model import TimeSpec
 from frictionbench.solvers import linalg
-from frictionbench.solvers.full import kernels as K
+from frictionbench.solvers import kernels as K
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.model import build_model
 from frictionbench.solvers.physics.terms import StepData, lagged_at_start

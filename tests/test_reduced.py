@@ -331,6 +331,49 @@ def test_point_terms_vanish_outside_the_candidates(block, kind, mu):
             assert not g[out].any() and not H[out].any(), term.name
 
 
+@pytest.mark.parametrize("kind", ["penalty_damped", "barrier"])
+def test_point_kernels_match_the_numpy_terms(block, kind):
+    """The reduced solver's point evaluation (the full-space warp kernels on its buffers) equals the sum of the
+    terms' numpy `at_points` to round-off, at every order, on all sample points, on the candidates, and on none; a
+    term without a kernel is evaluated by its numpy reference."""
+    from frictionbench.solvers.licrom.reduced import ReducedState, _PointSet
+    from frictionbench.solvers.licrom.terms import KernelLaunch, PointEvaluations, ReferencePointLaunch
+
+    model = build_model(candidate_scene(kind, 0.3), block)
+    solver = ReducedSolver(model, smooth_basis(model.X, 24, 0.002 * model.L), contact_candidates=True)
+    assert {t.name for t in solver.point_terms} >= {"friction"}
+    assert all(isinstance(launch, KernelLaunch) for launch in solver.point_evaluations.launches)
+    traj, _ = simulate_reduced(model, solver)
+    rm = solver.reduced
+    st = solver._begin(ReducedState(traj.q[-2], rm.project(traj.v[-2]), traj.t[-2]), 0.01)
+    q = traj.q[-1]
+    for ids in (None, solver._candidates(q, st), np.array([], dtype=np.int64)):
+        pts = _PointSet.of(rm, st, ids)
+        x = pts.positions(q)
+        for order in (0, 1, 2):
+            E, g, H = solver.point_evaluations.evaluate(pts, x, st.h_eff, order)
+            ref = [t.at_points(model, x, pts.x_lag, pts.x_bar, pts.area, pts.fn, st.h_eff, order)
+                   for t in solver.point_terms]
+            # to round-off of the terms' own sizes, amplified by the penetration d - n.x (micrometres, a difference
+            # of positions some 1e5 times larger that the two evaluations sum in different orders)
+            E_ref, E_size = sum(r[0] for r in ref), sum(abs(r[0]) for r in ref)
+            assert abs(E - E_ref) <= 1e-9 * E_size
+            for got, i in ((g, 1), (H, 2)):
+                if order >= i:
+                    want, size = sum(r[i] for r in ref), sum(np.abs(r[i]).max(initial=0.0) for r in ref)
+                    assert got.shape == want.shape and np.abs(got - want).max(initial=0.0) <= 1e-9 * size
+    # a point term of its own (a plug-in's) has no kernel: its numpy reference is evaluated
+    friction = next(t for t in solver.point_terms if t.name == "friction")
+    mine = type("MyFriction", (type(friction),), {"name": "my_friction"})()
+    own = PointEvaluations(solver, [mine])
+    assert [type(launch) for launch in own.launches] == [ReferencePointLaunch]
+    pts = _PointSet.of(rm, st, None)
+    x = pts.positions(q)
+    E, g, H = own.evaluate(pts, x, st.h_eff, 2)
+    E_ref, g_ref, H_ref = mine.at_points(model, x, pts.x_lag, pts.x_bar, pts.area, pts.fn, st.h_eff, 2)
+    assert E == E_ref and np.array_equal(g, g_ref) and np.array_equal(H, H_ref) and g_ref.any()
+
+
 def test_the_step_benchmark_times_the_reduced_step_beside_the_full_one():
     from frictionbench.bench.benchmark_step import REDUCED, REDUCED_PARTS, benchmark
 

@@ -123,7 +123,7 @@ class PushLaunch(FT.Launcher):
     def launch(self, x, h, mode, inertia) -> None:
         import warp as wp
 
-        from frictionbench.solvers.full import kernels as K
+        from frictionbench.solvers import kernels as K
 
         s = self.solver
         wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
@@ -207,7 +207,7 @@ class DragLaunch(FT.Launcher):
     def launch(self, x, h, mode, inertia) -> None:
         import warp as wp
 
-        from frictionbench.solvers.full import kernels as K
+        from frictionbench.solvers import kernels as K
 
         s = self.solver
         wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[

@@ -16,7 +16,7 @@ from frictionbench.scenarios.meshes import TetMesh, load_mesh, make_mesh
 from frictionbench.scenarios.meshgen import structured_box
 from frictionbench.scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
 from frictionbench.solvers.baselines import full_basis
-from frictionbench.solvers.full import kernels as K
+from frictionbench.solvers import kernels as K
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedState
 from frictionbench.solvers.model import Model, build_model, initial_state, rotation_matrix

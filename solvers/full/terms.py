@@ -1,5 +1,5 @@
 """The full-space backend's evaluation of the physics terms (`solvers.physics.terms`) with its warp kernels
-(`solvers.full.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@LAUNCHERS.register(TermClass)`).
+(`solvers.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@LAUNCHERS.register(TermClass)`).
 
 A launcher adds its term at positions x into the solver's buffers (mode 0: the energy into `energy_buf`; mode 1:
 the gradient into `grad` and the Hessian's 3x3 blocks into `values`) and keeps what it needs across a step in its
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
-from frictionbench.solvers.full import kernels as K
+from frictionbench.solvers import kernels as K
 from frictionbench.solvers.physics.contact import BarrierContact, ContactDamping, PenaltyContact
 from frictionbench.solvers.physics.friction import Friction
 from frictionbench.solvers.physics.inertia import Gravity, Inertia

@@ -4,7 +4,7 @@ The reduced solver's hot path is the per-cubature-tet evaluation of the energy d
 Piola-Kirchhoff stress P(F) and the PSD-projected Hessian (dP/dF)_+ at deformation gradients F (c, 3, 3). One
 kernel does all three into one packed output array (its width selects how much), so that a call is one launch;
 the linear reductions with the constant jacobians B_c = dvec(F_c)/dq are dense matrix products left to BLAS
-(solvers/licrom/reduced.py). The kernel shares the full-space solver's SNH functions (solvers/full/kernels.py:
+(solvers/licrom/reduced.py). The kernel shares the SNH functions of the full-space solver (solvers/kernels.py:
 the energy density, the cofactor and the analytic eigensystem of dP/dF), and each output mirrors the numpy
 reference in solvers/physics/material.py (row-major vec: vec(F)[3 i + j] = F[i, j]) and is tested against it.
 Measured on this project's 2-core CPU machine at 60 tets: ~15 us a call for the energy or the stress (mostly the
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from frictionbench.solvers.full.kernels import cofactor, snh_eigensystem, snh_mode, snh_psi
+from frictionbench.solvers.kernels import cofactor, snh_eigensystem, snh_mode, snh_psi
 from frictionbench.solvers.warp_runtime import init_warp
 
 f64 = wp.float64
@@ -58,9 +58,9 @@ def snh_kernel(F: wp.array(dtype=wp.mat33d), mu: f64, lam: f64, out: wp.array2d(
                 out[e, 10 + 9 * a + b] = H[a, b]
 
 
-_buffers: dict[tuple[int, int, str], tuple[wp.array, wp.array, np.ndarray, np.ndarray]] = {}
-"""(tets, width, device) -> the kernel's input and output arrays, allocated once and reused by every call, and
-on the CPU their numpy views (on CUDA, None)."""
+_buffers: dict[tuple[int, int, str], tuple[wp.Launch, wp.array, wp.array, np.ndarray, np.ndarray]] = {}
+"""(tets, width, device) -> the kernel's launch, recorded once (`wp.launch(record_cmd=True)`), its input and output
+arrays, allocated once and reused by every call, and on the CPU their numpy views (on CUDA, None)."""
 
 
 def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, device: str = "cpu"
@@ -76,13 +76,16 @@ def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, devi
     if key not in _buffers:
         F_wp, out_wp = wp.empty(c, dtype=wp.mat33d, device=device), wp.empty(key[:2], dtype=f64, device=device)
         views = (F_wp.numpy(), out_wp.numpy()) if device == "cpu" else (None, None)
-        _buffers[key] = (F_wp, out_wp) + views
-    F_wp, out_wp, F_view, out_view = _buffers[key]
+        cmd = wp.launch(snh_kernel, dim=c, inputs=[F_wp, 1.0, 1.0, out_wp], device=device, record_cmd=True)
+        _buffers[key] = (cmd, F_wp, out_wp) + views
+    cmd, F_wp, out_wp, F_view, out_view = _buffers[key]
     if F_view is None:
         F_wp.assign(np.ascontiguousarray(F, dtype=np.float64))
     else:
         F_view[...] = F
-    wp.launch(snh_kernel, dim=c, inputs=[F_wp, float(mu), float(lam), out_wp], device=device)
+    cmd.set_param_at_index(1, float(mu))
+    cmd.set_param_at_index(2, float(lam))
+    cmd.launch()
     out = out_wp.numpy().copy() if out_view is None else out_view.copy()
     P = out[:, 1:10].reshape(c, 3, 3) if mode >= STRESS else None
     H = out[:, 10:].reshape(c, 9, 9) if mode == HESSIAN else None

@@ -53,7 +53,7 @@ from scipy.linalg.lapack import dpotrf, dpotrs
 from frictionbench.solvers.baselines import project
 from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
-from frictionbench.solvers.licrom.terms import EVALUATIONS
+from frictionbench.solvers.licrom.terms import EVALUATIONS, PointEvaluations
 from frictionbench.solvers.model import Model, State
 from frictionbench.solvers.newton import Direction, LineSearch, NewtonResult, minimise
 from frictionbench.solvers.physics.contact import signed_distance
@@ -338,6 +338,7 @@ class ReducedSolver:
             raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
         self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
         self.point_terms = [t for t in self.terms if isinstance(t, PointTerm)]
+        self.point_evaluations = PointEvaluations(self, self.point_terms) if self.point_terms else None
         self.reach = max((t.reach(model) for t in self.point_terms), default=-np.inf)
         self.contact_candidates = contact_candidates and self.reduced.N is not None and self.reach < np.inf
         # N q below this (p,) [m]: the signed distance below the reach plus the round-off margin
@@ -353,9 +354,11 @@ class ReducedSolver:
         return State(state.x, state.v, state.t, rm.project(state.x - self.model.X), rm.project(state.v))
 
     def decode(self, latent: ReducedState) -> State:
-        """The full state X + W q, W qdot of a latent state, carrying q and qdot."""
+        """The full state X + W q, W qdot of a latent state, carrying q and qdot: one product W [q qdot], which reads
+        the basis (3n x r, megabytes on a medium mesh: the product is bound by memory) once for both."""
         rm = self.reduced
-        return State(self.model.X + rm.decode(latent.q), rm.decode(latent.qdot), latent.t, latent.q, latent.qdot)
+        u = rm.W.reshape(-1, rm.r) @ np.column_stack([latent.q, latent.qdot])
+        return State(self.model.X + u[:, 0].reshape(-1, 3), u[:, 1].reshape(-1, 3), latent.t, latent.q, latent.qdot)
 
     # ----- incremental potential -------------------------------------------------------------------------
     def _candidates(self, q: np.ndarray, st: ReducedStep) -> np.ndarray | None:
@@ -391,15 +394,7 @@ class ReducedSolver:
         if memo is not None and memo[0] is st and np.array_equal(memo[1], q):
             return memo[2]
         pts = self._points(q, st)
-        x = pts.positions(q)
-        E, g, H = 0.0, None, None
-        for term in self.point_terms:
-            e, gp, Hp = term.at_points(self.model, x, pts.x_lag, pts.x_bar, pts.area, pts.fn, st.h_eff, order)
-            E += e
-            if order >= 1:
-                g = gp if g is None else g + gp
-            if order == 2:
-                H = Hp if H is None else H + Hp
+        E, g, H = self.point_evaluations.evaluate(pts, pts.positions(q), st.h_eff, order)
         if order == 2:
             self._point_memo = st, q.copy(), (E, g, H, pts.Wp)
         return E, g, H, pts.Wp

@@ -2,8 +2,12 @@
 elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
 per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). A body term without an entry is
 evaluated from its numpy reference (`ReferenceEvaluation`, the table's default): exact, but a full-mesh evaluation
-per call; a dedicated evaluation makes it fast. The point terms (contact, damping, friction) need no entry: the
-solver evaluates them at its contact sample points by their `at_points`."""
+per call; a dedicated evaluation makes it fast.
+
+The point terms (`solvers.physics.terms.PointTerm`: contact, damping, friction) are evaluated at the contact sample
+points the solver picks (`PointEvaluations`): each by its `PointLaunch` in the table `POINT_LAUNCHES`, the built-in
+ones by the full-space solver's warp kernels (solvers/kernels.py, on the CPU, into shared buffers: one launch
+per term), any other by its numpy `at_points` (`ReferencePointLaunch`, the table's default)."""
 
 from __future__ import annotations
 
@@ -11,15 +15,20 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING
 
 import numpy as np
+import warp as wp
 
+from frictionbench.solvers import kernels as FK
 from frictionbench.solvers.licrom import kernels as K
+from frictionbench.solvers.physics.contact import BarrierContact, ContactDamping, PenaltyContact
+from frictionbench.solvers.physics.friction import Friction
 from frictionbench.solvers.physics.inertia import Gravity, Inertia
 from frictionbench.solvers.physics.material import Elasticity
-from frictionbench.solvers.physics.terms import Evaluation, StepData, Term, TermTable
+from frictionbench.solvers.physics.terms import Evaluation, PointTerm, StepData, Term, TermTable
+from frictionbench.solvers.warp_runtime import init_warp
 from frictionbench.solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
 
 if TYPE_CHECKING:
-    from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep
+    from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep, _PointSet
 
 
 class BodyEvaluation(ABC):
@@ -142,3 +151,142 @@ class _Viscosity(BodyEvaluation):
         P = viscous_stress(rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar),
                            self.rs.model.viscosity / st.h_eff)
         return self.rs.samples.forces(rm.wV, P)
+
+
+# ----- the point terms ---------------------------------------------------------------------------------------------
+class PointEvaluations:
+    """The point terms of a reduced solver at a set of its contact sample points, on the CPU.
+
+    Buffers sized for all p sample points hold, in their first k rows, the evaluated points' positions x, their
+    lagged x_lag and x_bar (k, 3) [m], area (k,) [m^2] and lagged pressure fn (k,) [Pa] (`load`), and receive the
+    terms' energy [J], gradient (k, 3) [N] and Hessian blocks (k, 3, 3) [N/m], which every term adds into
+    (`evaluate`). The warp arrays and their numpy views share memory."""
+
+    def __init__(self, rs: ReducedSolver, terms: list[PointTerm]) -> None:
+        init_warp()
+        self.model, p = rs.model, rs.reduced.points.size
+        self.x, self.x_lag, self.x_bar, self.grad = (wp.zeros(p, dtype=wp.vec3d, device="cpu") for _ in range(4))
+        self.area, self.fn = (wp.zeros(p, dtype=wp.float64, device="cpu") for _ in range(2))
+        self.values = wp.zeros(p, dtype=wp.mat33d, device="cpu")
+        self.energy = wp.zeros(1, dtype=wp.float64, device="cpu")
+        self.ids = wp.array(np.arange(p, dtype=np.int32), dtype=wp.int32, device="cpu")
+        self.normal = wp.vec3d(*(rs.model.plane_normal if rs.model.plane_normal is not None else np.zeros(3)))
+        self.views = {name: getattr(self, name).numpy()
+                      for name in ("x", "x_lag", "x_bar", "grad", "area", "fn", "values", "energy")}
+        self.launches = POINT_LAUNCHES.build(self, terms)
+        self._loaded: _PointSet | None = None  # the point set whose data the buffers hold
+        self.k, self.has_fn = 0, False  # its size; whether it carries a lagged pressure
+
+    def load(self, pts: _PointSet) -> None:
+        """Put the point set's lagged data into the buffers (once per set)."""
+        if pts is self._loaded:
+            return
+        v, k = self.views, pts.x_lag.shape[0]
+        v["x_lag"][:k], v["x_bar"][:k], v["area"][:k] = pts.x_lag, pts.x_bar, pts.area
+        v["fn"][:k] = 0.0 if pts.fn is None else pts.fn
+        self._loaded, self.k, self.has_fn = pts, k, pts.fn is not None
+
+    def evaluate(self, pts: _PointSet, x: np.ndarray, h: float, order: int
+                 ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
+        """Energy [J], gradient (k, 3) [N] (order >= 1) and Hessian blocks (k, 3, 3) [N/m] (order 2; computed for
+        order 1 too) of all the point terms at the points `pts` placed at x (k, 3) [m], h the effective step [s]."""
+        self.load(pts)
+        v, k = self.views, self.k
+        v["x"][:k] = x
+        v["energy"][0] = 0.0
+        if order >= 1:
+            v["grad"][:k], v["values"][:k] = 0.0, 0.0
+        for launch in self.launches:
+            launch.launch(self, h, 0 if order == 0 else 2)
+        E = float(v["energy"][0])
+        if order == 0:
+            return E, None, None
+        return E, v["grad"][:k].copy(), v["values"][:k].copy() if order == 2 else None
+
+
+class PointLaunch(ABC):
+    """One point term on `PointEvaluations`' buffers."""
+
+    def __init__(self, points: PointEvaluations, term: PointTerm) -> None:
+        self.term = term
+
+    @abstractmethod
+    def launch(self, p: PointEvaluations, h: float, mode: int) -> None:
+        """Add the term at the buffers' first p.k points: mode 0 its energy, 2 its energy, gradient and Hessian; h the
+        effective step [s]."""
+
+
+class ReferencePointLaunch(PointLaunch):
+    """Any point term from its numpy reference `PointTerm.at_points`."""
+
+    def launch(self, p: PointEvaluations, h: float, mode: int) -> None:
+        v, k = p.views, p.k
+        E, g, H = self.term.at_points(p.model, v["x"][:k], v["x_lag"][:k], v["x_bar"][:k], v["area"][:k],
+                                      v["fn"][:k] if p.has_fn else None, h, mode)
+        v["energy"][0] += E
+        if mode:
+            v["grad"][:k] += g
+            v["values"][:k] += H
+
+
+class KernelLaunch(PointLaunch):
+    """A point term by a warp kernel of solvers/kernels.py whose arguments `inputs` names, recorded once
+    (`wp.launch(record_cmd=True)`: a recorded launch costs a few microseconds, a fresh one with these fifteen
+    arguments some 50) and relaunched on the first k points with the step h and the mode set."""
+
+    kernel: wp.Kernel
+
+    def __init__(self, points: PointEvaluations, term: PointTerm) -> None:
+        super().__init__(points, term)
+        self.cmd = wp.launch(self.kernel, 1, inputs=self.inputs(points), device="cpu", record_cmd=True)
+        labels = [arg.label for arg in self.kernel.adj.args]
+        self.h_at, self.mode_at = labels.index("h") if "h" in labels else None, labels.index("mode")
+
+    @abstractmethod
+    def inputs(self, p: PointEvaluations) -> list:
+        """The kernel's arguments on p's buffers (h = 1 and mode = 0 until a launch sets them)."""
+
+    def launch(self, p: PointEvaluations, h: float, mode: int) -> None:
+        if p.k == 0:
+            return
+        self.cmd.set_dim(p.k)
+        if self.h_at is not None:
+            self.cmd.set_param_at_index(self.h_at, h)
+        self.cmd.set_param_at_index(self.mode_at, mode)
+        self.cmd.launch()
+
+
+#: The point evaluation of each point term class (`POINT_LAUNCHES.build(points, point_terms)`; a term without one
+#: gets `ReferencePointLaunch`).
+POINT_LAUNCHES: TermTable[PointLaunch] = TermTable("reduced point launch (solvers.licrom.terms.POINT_LAUNCHES)",
+                                                   default=ReferencePointLaunch)
+
+
+@POINT_LAUNCHES.register(PenaltyContact, ContactDamping)
+class _Penalty(KernelLaunch):
+    kernel = FK.penalty_contact_kernel
+
+    def inputs(self, p: PointEvaluations) -> list:
+        m = p.model
+        return [p.x, p.x_lag, p.x_bar, p.ids, p.area, p.normal, m.plane_offset, self.term.ke(m), self.term.kd(m), 1.0,
+                p.ids, p.grad, p.values, p.energy, 0]
+
+
+@POINT_LAUNCHES.register(BarrierContact)
+class _Barrier(KernelLaunch):
+    kernel = FK.barrier_contact_kernel
+
+    def inputs(self, p: PointEvaluations) -> list:
+        m, c = p.model, p.model.contact
+        return [p.x, p.ids, p.area, p.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance, p.ids, p.grad,
+                p.values, p.energy, 0]
+
+
+@POINT_LAUNCHES.register(Friction)
+class _Friction(KernelLaunch):
+    kernel = FK.friction_kernel
+
+    def inputs(self, p: PointEvaluations) -> list:
+        m = p.model
+        return [p.x, p.x_bar, p.ids, p.area, p.fn, p.normal, m.friction, m.contact.friction_stiffness, 1.0, p.ids,
+                p.grad, p.values, p.energy, 0]

@@ -1,5 +1,7 @@
-"""Warp kernels of the full-space solver (float64, CPU and CUDA); each mirrors a numpy reference in
-`solvers.physics` and is tested against it.
+"""Warp kernels of the physics terms (float64, CPU and CUDA); each mirrors a numpy reference in `solvers.physics`
+and is tested against it. The full-space solver launches them all (`solvers.full.terms`); the reduced solver launches
+the point terms' kernels at its contact candidates and calls the SNH functions from its cubature kernel
+(`solvers.licrom`).
 
 Hessians are accumulated into the values of a block-sparse (BSR, 3x3 blocks) matrix whose pattern is fixed
 by the mesh: `blockmap[16 e + 4 a + b]` is the block of the (tets[e, a], tets[e, b]) pair, `diag[i]` the
@@ -252,7 +254,8 @@ def penalty_contact_kernel(
     energy: wp.array(dtype=f64),
     mode: int,
 ):
-    """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian.
+    """Penalty law per unit area (see solvers.physics.contact.penalty_*); mode 0: energy, 1: grad + Hessian,
+    2: all three.
 
     Damping acts at points that penetrated at the start of the step (x_lag below the plane), with the velocity
     (x - x_bar) / h of the integrator (h its effective step)."""
@@ -266,9 +269,9 @@ def penalty_contact_kernel(
         return
     c = wp.max(c, f64(0.0))
     A = area[p]
-    if mode == 0:
+    if mode != 1:
         wp.atomic_add(energy, 0, A * (f64(0.5) * ke * c * c + f64(0.5) * h * kd * vn * vn))
-    else:
+    if mode >= 1:
         wp.atomic_add(grad, i, A * (-ke * c + kd * vn) * normal)
         k = f64(0.0)
         if c > f64(0.0):
@@ -293,19 +296,20 @@ def barrier_contact_kernel(
     energy: wp.array(dtype=f64),
     mode: int,
 ):
-    """IPC log barrier kappa A b(phi) (see solvers.physics.contact.barrier*); mode 0: energy, 1: grad + Hessian."""
+    """IPC log barrier kappa A b(phi) (see solvers.physics.contact.barrier*); mode 0: energy, 1: grad + Hessian, 2:
+    all three."""
     p = wp.tid()
     i = points[p]
     d = wp.dot(normal, x[i]) - offset
     if d >= dhat:
         return
     A = area[p]
-    if mode == 0:
+    if mode != 1:
         if d <= f64(0.0):
             wp.atomic_add(energy, 0, f64(1.0e300))
         else:
             wp.atomic_add(energy, 0, -kappa * A * (d - dhat) * (d - dhat) * wp.log(d / dhat))
-    else:
+    if mode >= 1:
         b1 = -f64(2.0) * (d - dhat) * wp.log(d / dhat) - (d - dhat) * (d - dhat) / d
         b2 = -f64(2.0) * wp.log(d / dhat) - f64(4.0) * (d - dhat) / d + (d - dhat) * (d - dhat) / (d * d)
         wp.atomic_add(grad, i, kappa * A * b1 * normal)
@@ -330,7 +334,7 @@ def friction_kernel(
     mode: int,
 ):
     """Lagged friction potential A h mu f_n f0(|v_t|) (see solvers.physics.friction), v = (x - x_bar) / h with the
-    integrator's x_bar and effective step h; mode 0 energy, 1 grad+H."""
+    integrator's x_bar and effective step h; mode 0 energy, 1 grad+H, 2 all three."""
     p = wp.tid()
     if fn[p] <= f64(0.0):
         return
@@ -342,12 +346,12 @@ def friction_kernel(
     cap = mu * fn[p]
     eps = cap / kf
     T = wp.identity(n=3, dtype=f64) - wp.outer(normal, normal)
-    if mode == 0:
+    if mode != 1:
         f0 = s - f64(0.5) * eps
         if s < eps:
             f0 = f64(0.5) * s * s / eps
         wp.atomic_add(energy, 0, A * h * cap * f0)
-    else:
+    if mode >= 1:
         if s < eps:
             wp.atomic_add(grad, i, A * kf * vt)
             wp.atomic_add(values, diag[i], (A * kf / h) * T)
