@@ -299,7 +299,8 @@ class ReducedSolver:
     docstring.
 
     model: the scene on the mesh W was evaluated on; cubature: (tet ids, weights) or None for every tet (weight
-    1); scheme: "newton" or "projected_gradient"; device: where the elastic kernel runs ("cpu" or "cuda");
+    1); scheme: "newton" or "projected_gradient"; device: where the cubature kernel runs ("cpu" or "cuda"; the point
+    terms' kernels run on the CPU, their work being small);
     tol: convergence |W dq|_inf / h < tol * L [1/s]; max_iter: iterations per step; alpha: the
     projected-gradient step size [-]; contact_samples, seed: contact point subsampling (None keeps all);
     armijo, max_halvings: Newton line search; contact_candidates: evaluate the point terms at the candidate
