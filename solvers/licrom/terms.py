@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
-from frictionbench.solvers import kernels as FK
+from frictionbench.solvers import kernels as shared
 from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.physics.contact import BarrierContact, ContactDamping, PenaltyContact
 from frictionbench.solvers.physics.friction import Friction
@@ -264,7 +264,7 @@ POINT_LAUNCHES: TermTable[PointLaunch] = TermTable("reduced point launch (solver
 
 @POINT_LAUNCHES.register(PenaltyContact, ContactDamping)
 class _Penalty(KernelLaunch):
-    kernel = FK.penalty_contact_kernel
+    kernel = shared.penalty_contact_kernel
 
     def inputs(self, p: PointEvaluations) -> list:
         m = p.model
@@ -274,7 +274,7 @@ class _Penalty(KernelLaunch):
 
 @POINT_LAUNCHES.register(BarrierContact)
 class _Barrier(KernelLaunch):
-    kernel = FK.barrier_contact_kernel
+    kernel = shared.barrier_contact_kernel
 
     def inputs(self, p: PointEvaluations) -> list:
         m, c = p.model, p.model.contact
@@ -284,7 +284,7 @@ class _Barrier(KernelLaunch):
 
 @POINT_LAUNCHES.register(Friction)
 class _Friction(KernelLaunch):
-    kernel = FK.friction_kernel
+    kernel = shared.friction_kernel
 
     def inputs(self, p: PointEvaluations) -> list:
         m = p.model
