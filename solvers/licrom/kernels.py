@@ -58,6 +58,12 @@ def snh_kernel(F: wp.array(dtype=wp.mat33d), mu: f64, lam: f64, out: wp.array2d(
                 out[e, 10 + 9 * a + b] = H[a, b]
 
 
+def check_device(device: str) -> None:
+    """Raise ValueError naming `device` unless the kernel can run there (DEVICES)."""
+    if device not in DEVICES:
+        raise ValueError(f"device = {device!r}: expected one of {DEVICES}")
+
+
 _buffers: dict[tuple[int, int, str], tuple[wp.Launch, wp.array, wp.array, np.ndarray, np.ndarray]] = {}
 """(tets, width, device) -> the kernel's launch, recorded once (`wp.launch(record_cmd=True)`), its input and output
 arrays, allocated once and reused by every call, and on the CPU their numpy views (on CUDA, None)."""
@@ -68,8 +74,7 @@ def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, devi
     """Psi (c,) [J/m^3], P (c, 3, 3) [Pa] (mode >= STRESS, else None) and (dP/dF)_+ (c, 9, 9) [Pa]
     (mode == HESSIAN, else None) at F (c, 3, 3), on `device` ("cpu" or "cuda"). One kernel launch; the results
     are new arrays."""
-    if device not in DEVICES:
-        raise ValueError(f"device = {device!r}: expected one of {DEVICES}")
+    check_device(device)
     init_warp()
     c = F.shape[0]
     key = (c, _WIDTH[mode], device)

@@ -127,8 +127,7 @@ class ReducedModel:
         model's contact points (uniformly at random, `seed`), areas re-weighted to keep the total; None keeps all.
         device: where the elastic kernel runs ("cpu" or "cuda").
         """
-        if device not in K.DEVICES:
-            raise ValueError(f"device = {device!r}: expected one of {K.DEVICES}")
+        K.check_device(device)
         n, r = model.n, W.shape[2]
         if W.shape != (n, 3, r):
             raise ValueError(f"basis shape {W.shape}: expected ({n}, 3, r) for this mesh")
