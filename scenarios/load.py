@@ -324,8 +324,10 @@ def _plane(raw: object) -> Plane | None:
         if downhill not in DOWNHILL_AXES:
             raise ScenarioError("plane.downhill", downhill, f"expected one of {list(DOWNHILL_AXES)}")
         hx, hz = DOWNHILL_AXES[downhill]
-        return Plane(normal=(hx * math.sin(theta) + 0.0, math.cos(theta), hz * math.sin(theta) + 0.0),
-                     offset=offset, friction=friction)
+        # a component that a tiny slope makes subnormal becomes 0.0, as in a given normal (`_finite`)
+        x, y, z = (_finite(c, "plane.slope_deg", "") for c in (hx * math.sin(theta), math.cos(theta),
+                                                               hz * math.sin(theta)))
+        return Plane(normal=(x, y, z), offset=offset, friction=friction)
     if "downhill" in t:
         raise ScenarioError("plane.downhill", t["downhill"], "only meaningful with slope_deg")
     normal = _vec3(t.get("normal", d.normal), "plane.normal")

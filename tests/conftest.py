@@ -1,12 +1,20 @@
 """Shared fixtures. Small dense linear algebra runs single-threaded in tests: BLAS threads on a busy 2-core
-machine slow the reduced solver's r x r operations by an order of magnitude."""
+machine slow the reduced solver's r x r operations by an order of magnitude. Hypothesis draws its examples from a
+fixed seed (`derandomize`) and keeps no example database, so that every run, CI's included, tests the same inputs;
+`HYPOTHESIS_PROFILE=explore` draws fresh ones (and keeps the failures it finds) to search for new cases."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 from threadpoolctl import threadpool_limits
+
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.register_profile("explore")
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 from frictionbench.scenarios.meshes import load_mesh
 from frictionbench.scenarios.model import MeshSpec

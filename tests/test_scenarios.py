@@ -733,3 +733,11 @@ def test_a_normal_component_made_subnormal_by_the_normalisation_keeps_the_round_
     s = scenario_from_dict(d)
     assert s.plane.normal == (0.0, 1.0, 0.0)
     assert scenario_hash(scenario_from_dict(scenario_to_dict(s))) == scenario_hash(s)
+
+
+def test_a_slope_too_small_for_a_normal_number_round_trips() -> None:
+    """Found by hypothesis: sin of the smallest normal slope in radians is subnormal; the slope form flushes it as
+    the normal form does."""
+    s = scenario_from_dict({"name": "0", "plane": {"slope_deg": sys.float_info.min}})
+    assert s.plane.normal == (0.0, 1.0, 0.0)
+    assert scenario_from_dict(scenario_to_dict(s)) == s
