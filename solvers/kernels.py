@@ -58,7 +58,8 @@ def shape_gradient(Dm_inv: wp.mat33d, a: int) -> wp.vec3d:
 
 @wp.func
 def add_mode(blocks: wp.array(dtype=wp.mat33d), base: int, Q: wp.mat33d, lam_v: f64, Dm_inv: wp.mat33d):
-    """blocks[base + 4a + b] += lam_v (Q g_a)(Q g_b)^T for one eigen-matrix Q of dP/dF with eigenvalue lam_v."""
+    """blocks[base + 4a + b] += lam_v (Q g_a)(Q g_b)^T for one mode Q of dP/dF with weight lam_v (`snh_mode`; none
+    where lam_v <= 0)."""
     if lam_v > f64(0.0):
         w0 = Q * shape_gradient(Dm_inv, 0)
         w1 = Q * shape_gradient(Dm_inv, 1)
@@ -120,6 +121,33 @@ def elastic_gradient_kernel(
 
 
 @wp.func
+def scaling_factor(A: wp.mat33d):
+    """A factor Qs and weights ls of the PSD part A_+ of a symmetric 3x3 A, A_+ = sum_m ls[m] q_m q_m^T with q_m the
+    columns of Qs: where A is positive definite (its Cholesky pivots all positive), A's Cholesky factor L (A = L L^T)
+    with unit weights, which costs a tenth of an eigendecomposition; else its eigenvectors and eigenvalues (`eig3`),
+    the negative ones to be dropped by the caller."""
+    Qs = wp.mat33d()
+    ls = wp.vec3d(f64(1.0), f64(1.0), f64(1.0))
+    pd = False
+    if A[0, 0] > f64(0.0):
+        Qs[0, 0] = wp.sqrt(A[0, 0])
+        Qs[1, 0] = A[1, 0] / Qs[0, 0]
+        Qs[2, 0] = A[2, 0] / Qs[0, 0]
+        d1 = A[1, 1] - Qs[1, 0] * Qs[1, 0]
+        if d1 > f64(0.0):
+            Qs[1, 1] = wp.sqrt(d1)
+            Qs[2, 1] = (A[2, 1] - Qs[2, 0] * Qs[1, 0]) / Qs[1, 1]
+            d2 = A[2, 2] - Qs[2, 0] * Qs[2, 0] - Qs[2, 1] * Qs[2, 1]
+            if d2 > f64(0.0):
+                Qs[2, 2] = wp.sqrt(d2)
+                pd = True
+    if not pd:
+        Qs = wp.mat33d()
+        wp.eig3(A, Qs, ls)
+    return Qs, ls
+
+
+@wp.func
 def snh_eigensystem(F: wp.mat33d, mu: f64, lam: f64, alpha: f64):
     """The analytic eigensystem of the SNH dP/dF (9x9) at F, in the rotation-variant SVD F = U diag(s) V^T
     (det U = det V = 1): returns (U, s, V, Qs, ls, ca, cc) for `snh_mode`.
@@ -127,8 +155,10 @@ def snh_eigensystem(F: wp.mat33d, mu: f64, lam: f64, alpha: f64):
     dP/dF = a I + b f f^T + d g g^T + c d2J/dF2 with a = mu (1 - 1/(I_C+1)), b = 2 mu/(I_C+1)^2, c = lam (J -
     alpha), d = lam, f = vec F, g = vec cof F. Its eigen-matrices are, per index pair (i, j) with k the third, a
     twist U (e_i e_j^T - e_j e_i^T) V^T / sqrt 2 with eigenvalue a + c s_k, a flip with + and eigenvalue a - c s_k,
-    and three scaling modes U diag(w) V^T with w the eigenvectors (columns of Qs, eigenvalues ls) of the 3x3 matrix
-    A_ij = a delta_ij + b s_i s_j + d g_i g_j + c s_k [i != j], g = (s1 s2, s0 s2, s0 s1); ca = a, cc = c.
+    and three scaling modes U diag(w) V^T spanning the block of the 3x3 matrix A_ij = a delta_ij + b s_i s_j + d g_i
+    g_j + c s_k [i != j], g = (s1 s2, s0 s2, s0 s1): with (Qs, ls) = `scaling_factor(A)`, w the columns of Qs and
+    ls their weights (A's eigenvectors and eigenvalues, or where A is positive definite its Cholesky factor's
+    columns with weight 1: the same block, A_+ = A); ca = a, cc = c.
     """
     U = wp.mat33d()
     s = wp.vec3d()
@@ -155,16 +185,16 @@ def snh_eigensystem(F: wp.mat33d, mu: f64, lam: f64, alpha: f64):
                 A[i, j] = A[i, j] + ca
             else:
                 A[i, j] = A[i, j] + cc * s[3 - i - j]
-    Qs = wp.mat33d()
-    ls = wp.vec3d()
-    wp.eig3(A, Qs, ls)
+    Qs, ls = scaling_factor(A)
     return U, s, V, Qs, ls, ca, cc
 
 
 @wp.func
 def snh_mode(U: wp.mat33d, s: wp.vec3d, V: wp.mat33d, Qs: wp.mat33d, ls: wp.vec3d, ca: f64, cc: f64, m: int):
-    """Eigen-matrix m (unit Frobenius norm) of dP/dF and its eigenvalue, from `snh_eigensystem`'s output: m = 0-2
-    the scaling modes, then per k = 0, 1, 2 the twist (m = 3 + 2k) and the flip (m = 4 + 2k) about axis k."""
+    """Mode m of dP/dF = sum_m l_m vec(Q_m) vec(Q_m)^T from `snh_eigensystem`'s output: (Q_m, l_m). m = 0-2 the
+    scaling block's factor columns (eigen-matrices of unit Frobenius norm, or Cholesky columns with weight 1), then
+    per k = 0, 1, 2 the twist (m = 3 + 2k) and the flip (m = 4 + 2k) about axis k (eigen-matrices of unit norm with
+    their eigenvalues). Keeping the modes of positive weight gives the PSD projection (dP/dF)_+."""
     Vt = wp.transpose(V)
     if m < 3:
         return U * wp.diag(wp.vec3d(Qs[0, m], Qs[1, m], Qs[2, m])) * Vt, ls[m]

@@ -98,21 +98,28 @@ class LaggedStep(Protocol):
     def velocity(self, y: np.ndarray) -> np.ndarray: ...
 
 
+def gate_positions(model: Model, x: np.ndarray, x_start: np.ndarray) -> np.ndarray:
+    """Per contact point whichever of its start position x_start and its lagged position x (p, 3) [m] lies lower,
+    (p, 3) [m] (x itself for the start lag, `x is x_start`, or without a plane): what the terms take as x_lag, whose
+    signed distance is negative exactly at the contact-damping gate."""
+    if x is x_start or model.plane_normal is None:
+        return x
+    lower = signed_distance(x_start, model.plane_normal, model.plane_offset) < signed_distance(
+        x, model.plane_normal, model.plane_offset)
+    return np.where(lower[:, None], x_start, x)
+
+
 def lagged_contact(terms: Sequence[Term], model: Model, x: np.ndarray, v: np.ndarray, x_start: np.ndarray
                    ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """(fn, gate, x_gate) of a step lagged at contact points x (p, 3) [m] moving at v (p, 3) [m/s], from the start
     positions x_start (p, 3) [m] (x itself for the start lag): the normal pressure (p,) [Pa] at (x, v)
     (`lagged_at_start`; None without a term that lags it), the contact-damping gate (p,) bool, the points below the
-    plane at the start or at x (`ContactLag`; all False without a plane), and per point whichever of x_start and x
-    lies lower, (p, 3) [m], whose signed distance is negative exactly at the gate (what the terms take as x_lag)."""
+    plane at the start or at x (`ContactLag`; all False without a plane), and the gate positions
+    (`gate_positions`)."""
     fn = lagged_at_start(terms, model, x, v)
+    x_gate = gate_positions(model, x, x_start)
     if model.plane_normal is None:
-        return fn, np.zeros(x.shape[0], bool), x
-    if x is x_start:  # the start lag (every step's first solve): nothing to choose between
-        return fn, damped_points(x, model.plane_normal, model.plane_offset), x
-    lower = signed_distance(x_start, model.plane_normal, model.plane_offset) < signed_distance(
-        x, model.plane_normal, model.plane_offset)
-    x_gate = np.where(lower[:, None], x_start, x)
+        return fn, np.zeros(x.shape[0], bool), x_gate
     return fn, damped_points(x_gate, model.plane_normal, model.plane_offset), x_gate
 
 

@@ -52,6 +52,20 @@ def law_creep_speed(model, x: np.ndarray, v: np.ndarray, theta_deg: float, mu: f
     return pf.creep_speed(model.area, fn, mu, c.friction_stiffness, load)
 
 
+def _snh_scaling_block(F: np.ndarray, mu: float, lam: float) -> np.ndarray:
+    """The SNH dP/dF restricted to the scaling modes (`solvers.kernels.snh_eigensystem`'s A), (k, 3, 3) at F (k, 3,
+    3), from the rotation-variant singular values."""
+    U, s, Vt = np.linalg.svd(F)
+    s[:, 2] *= np.sign(np.linalg.det(U)) * np.sign(np.linalg.det(Vt))
+    ic, J = (s**2).sum(axis=1), s.prod(axis=1)
+    a, b, c = mu * (1 - 1 / (ic + 1)), 2 * mu / (ic + 1) ** 2, lam * (J - (1 + 0.75 * mu / lam))
+    g = J[:, None] / np.where(s == 0, 1.0, s)  # s_j s_k (no zero singular value among the samples)
+    k = 3 - np.add.outer(np.arange(3), np.arange(3))  # the third index of an off-diagonal pair
+    off = np.where(np.eye(3, dtype=bool), 0.0, np.take(s, np.where(np.eye(3, dtype=bool), 0, k), axis=1))
+    return (a[:, None, None] * np.eye(3) + b[:, None, None] * s[:, :, None] * s[:, None, :]
+            + lam * g[:, :, None] * g[:, None, :] + c[:, None, None] * off)
+
+
 # ----- kernels ----------------------------------------------------------------------------------------------
 def test_snh_kernel_matches_numpy_reference():
     rng = np.random.default_rng(3)
@@ -64,12 +78,16 @@ def test_snh_kernel_matches_numpy_reference():
     assert np.abs(P - pm.snh_pk1(F, mu, lam)).max() < 1e-12 * mu
     H_ref = pm.project_psd(pm.snh_dpdf(F, mu, lam))
     assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
+    pd = np.linalg.eigvalsh(_snh_scaling_block(F, mu, lam)).min(axis=1) > 0
+    assert pd.any() and not pd.all()  # both ways of the kernel's scaling block: Cholesky and eigendecomposition
     psi0, P0, H0 = K.snh_evaluate(F, mu, lam, K.ENERGY)
     assert np.array_equal(psi0, psi) and P0 is None and H0 is None
     assert np.array_equal(K.snh_evaluate(F, mu, lam, K.STRESS)[1], P)
     kept = H.copy()
     K.snh_evaluate(2.0 * F, mu, lam, K.HESSIAN)  # the kernel's buffers are reused; its results are not
     assert np.array_equal(H, kept)
+    for m in (2.0 * mu, mu):  # a changed material reaches the recorded launch, and so does the change back
+        assert np.abs(K.snh_evaluate(F, m, lam, K.ENERGY)[0] - pm.snh_energy_density(F, m, lam)).max() < 1e-12 * m
     with pytest.raises(ValueError, match="device = 'gpu'"):
         K.snh_evaluate(F, mu, lam, K.HESSIAN, device="gpu")
 
@@ -323,12 +341,40 @@ def test_point_terms_vanish_outside_the_candidates(block, kind, mu):
         out = np.setdiff1d(np.arange(rm.points.size), ids)
         assert 0 < ids.size and 0 < out.size
         x = rm.point_positions(q)
+        x_lag, x_bar = st.lagged_positions(rm, None)
         for term in solver.point_terms:
-            E_out = term.at_points(model, x[out], st.x_lag[out], st.x_bar[out], rm.area[out],
+            E_out = term.at_points(model, x[out], x_lag[out], x_bar[out], rm.area[out],
                                    None if st.fn is None else st.fn[out], st.h_eff, 2)
             assert E_out[0] == 0.0 and not E_out[1].any() and not E_out[2].any(), term.name
-            _, g, H = term.at_points(model, x, st.x_lag, st.x_bar, rm.area, st.fn, st.h_eff, 2)
+            _, g, H = term.at_points(model, x, x_lag, x_bar, rm.area, st.fn, st.h_eff, 2)
             assert not g[out].any() and not H[out].any(), term.name
+
+
+@pytest.mark.parametrize("kind, lag", [("penalty_damped", "start"), ("penalty_damped", "fixed-point"),
+                                       ("barrier", "fixed-point")])
+def test_the_lag_near_the_plane_is_the_lag_at_every_point(block, kind, lag):
+    """With the candidates on, a step's lag (friction's pressure, the contact-damping gate, the terms' lagged
+    support) is computed at the points near the plane at the start or at the lag alone (`_lag_points`): it equals
+    the lag computed at every sample point, to round-off, and leaves most points out."""
+    from frictionbench.solvers.licrom.reduced import ReducedState
+
+    sc = candidate_scene(kind, 0.3)
+    model = build_model(replace(sc, contact=replace(sc.contact, lag=lag)), block)
+    W = smooth_basis(model.X, 24, 0.002 * model.L)
+    near, every = (ReducedSolver(model, W, contact_candidates=c) for c in (True, False))
+    traj, _ = simulate_reduced(model, near)
+    rm = near.reduced
+    latent = ReducedState(traj.q[-2], rm.project(traj.v[-2]), traj.t[-2])
+    lag_at = None if lag == "start" else (traj.q[-1], rm.project(traj.v[-1]))
+    ids = near._lag_points(latent.q, latent.q if lag_at is None else lag_at[0])
+    assert 0 < ids.size < 0.5 * rm.points.size
+    a, b = near._begin(latent, 0.01, None, lag_at), every._begin(latent, 0.01, None, lag_at)
+    assert b.fn is not None and (b.fn > 0).any() and (b.lagged & ~b.gate).any() == (kind == "barrier")
+    assert np.abs(a.fn - b.fn).max() <= 1e-12 * b.fn.max()
+    assert np.array_equal(a.gate, b.gate) and np.array_equal(a.lagged, b.lagged)
+    assert not a.lagged[np.setdiff1d(np.arange(rm.points.size), ids)].any()
+    for pa, pb in zip(a.lagged_positions(rm, ids), b.lagged_positions(rm, None)):
+        assert np.abs(pa - pb[ids]).max() <= 1e-15 * model.L
 
 
 @pytest.mark.parametrize("kind", ["penalty_damped", "barrier"])

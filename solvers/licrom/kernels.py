@@ -17,7 +17,7 @@ import numpy as np
 import warp as wp
 
 from frictionbench.solvers.kernels import cofactor, snh_eigensystem, snh_mode, snh_psi
-from frictionbench.solvers.warp_runtime import init_warp
+from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
 
 f64 = wp.float64
 
@@ -64,9 +64,9 @@ def check_device(device: str) -> None:
         raise ValueError(f"device = {device!r}: expected one of {DEVICES}")
 
 
-_buffers: dict[tuple[int, int, str], tuple[wp.Launch, wp.array, wp.array, np.ndarray, np.ndarray]] = {}
-"""(tets, width, device) -> the kernel's launch, recorded once (`wp.launch(record_cmd=True)`), its input and output
-arrays, allocated once and reused by every call, and on the CPU their numpy views (on CUDA, None)."""
+_buffers: dict[tuple[int, int, str], tuple[RecordedLaunch, wp.array, wp.array, np.ndarray, np.ndarray]] = {}
+"""(tets, width, device) -> the kernel's launch (`RecordedLaunch`), its input and output arrays, allocated once and
+reused by every call, and on the CPU their numpy views (on CUDA, None)."""
 
 
 def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, device: str = "cpu"
@@ -81,16 +81,15 @@ def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, devi
     if key not in _buffers:
         F_wp, out_wp = wp.empty(c, dtype=wp.mat33d, device=device), wp.empty(key[:2], dtype=f64, device=device)
         views = (F_wp.numpy(), out_wp.numpy()) if device == "cpu" else (None, None)
-        cmd = wp.launch(snh_kernel, dim=c, inputs=[F_wp, 1.0, 1.0, out_wp], device=device, record_cmd=True)
-        _buffers[key] = (cmd, F_wp, out_wp) + views
-    cmd, F_wp, out_wp, F_view, out_view = _buffers[key]
+        _buffers[key] = (RecordedLaunch(snh_kernel, c, [F_wp, 1.0, 1.0, out_wp], device), F_wp, out_wp) + views
+    launch, F_wp, out_wp, F_view, out_view = _buffers[key]
     if F_view is None:
         F_wp.assign(np.ascontiguousarray(F, dtype=np.float64))
     else:
         F_view[...] = F
-    cmd.set_param_at_index(1, float(mu))
-    cmd.set_param_at_index(2, float(lam))
-    cmd.launch()
+    launch.set(1, float(mu))
+    launch.set(2, float(lam))
+    launch.launch(c)
     out = out_wp.numpy().copy() if out_view is None else out_view.copy()
     P = out[:, 1:10].reshape(c, 3, 3) if mode >= STRESS else None
     H = out[:, 10:].reshape(c, 9, 9) if mode == HESSIAN else None

@@ -60,7 +60,7 @@ from frictionbench.solvers.physics.contact import signed_distance
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_gradients
 from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, terms_of
-from frictionbench.solvers.step import ContactLag, StepProblem, lagged_contact, solve_lagged
+from frictionbench.solvers.step import ContactLag, StepProblem, gate_positions, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
 
 SPARSE_DENSITY, SPARSE_MIN_R = 0.1, 100
@@ -164,9 +164,11 @@ class ReducedModel:
         """Mass-weighted least-squares coordinates of a vertex field u (n, 3): argmin_q |W q - u|_M, (r,)."""
         return project(self.W, u, self.model.mass)
 
-    def point_positions(self, q: np.ndarray) -> np.ndarray:
-        """Contact sample positions X_p + W_p q, (p, 3) [m]."""
-        return self.Xp + (self.Wp.reshape(-1, self.r) @ q).reshape(-1, 3)
+    def point_positions(self, q: np.ndarray, ids: np.ndarray | None = None) -> np.ndarray:
+        """Contact sample positions X_p + W_p q, (p, 3) [m], or at the sample points ids (k,) alone, (k, 3)."""
+        if ids is None:
+            return self.Xp + (self.Wp.reshape(-1, self.r) @ q).reshape(-1, 3)
+        return self.Xp[ids] + (self.Wp[ids].reshape(-1, self.r) @ q).reshape(-1, 3)
 
     def deformation_gradients(self, q: np.ndarray) -> np.ndarray:
         """F_c(q) at the cubature tets, (c, 3, 3)."""
@@ -196,6 +198,13 @@ class ReducedModel:
         return g, (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
 
 
+def _scatter(values: np.ndarray, ids: np.ndarray, p: int) -> np.ndarray:
+    """A (p,) array of `values` (k,) at ids (k,) and zeros (False) elsewhere."""
+    out = np.zeros(p, dtype=values.dtype)
+    out[ids] = values
+    return out
+
+
 def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """The contact points and area weights, or a uniform random subset of `count` of them with the areas scaled
     so that their sum (the surface area) is unchanged."""
@@ -211,23 +220,29 @@ def _contact_samples(model: Model, count: int | None, seed: int) -> tuple[np.nda
 @dataclass
 class ReducedStep:
     """Per-step constants: dt h [s] and the integrator's effective step h_eff [s], q^n, q_bar and the inertial
-    target q_hat = q_bar + h_eff qdot_bar (r,), the contact points where the step lags contact x_lag (p, 3) [m] (the
-    start of the step by default, `solvers.step.ContactLag`) and at q_bar, x_bar (p, 3) [m], the lagged normal
-    pressure fn (p,) [Pa] (None without friction) and contact-damping gate (p,) bool there, and `lagged` (p,) bool,
-    the points where a point term can act whatever their position (`PointTerm.lagged_support`). Backward Euler:
-    h_eff = h, q_bar = q^n. The dissipative terms' velocity is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the
-    points)."""
+    target q_hat = q_bar + h_eff qdot_bar (r,), the latent coordinates where the step lags contact q_lag (r,) (q^n
+    itself for the start of the step, the default, `solvers.step.ContactLag`), the lagged normal pressure fn (p,)
+    [Pa] (None without friction) and contact-damping gate (p,) bool there, and `lagged` (p,) bool, the points where
+    a point term can act whatever their position (`PointTerm.lagged_support`). Backward Euler: h_eff = h, q_bar =
+    q^n. The dissipative terms' velocity is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the points)."""
 
     h: float
     h_eff: float
     q_prev: np.ndarray
     q_bar: np.ndarray
     q_hat: np.ndarray
-    x_lag: np.ndarray
-    x_bar: np.ndarray
+    q_lag: np.ndarray
     fn: np.ndarray | None
     gate: np.ndarray | None = None
     lagged: np.ndarray | None = None
+
+    def lagged_positions(self, rm: ReducedModel, ids: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """At the sample points ids (k,) (None: all), the gate positions x_lag (`solvers.step.gate_positions` of
+        the lag's and the start's positions: what the point terms take as x_lag) and x_bar, (k, 3) [m] each."""
+        x_start = rm.point_positions(self.q_prev, ids)
+        x_lag = x_start if self.q_lag is self.q_prev else rm.point_positions(self.q_lag, ids)
+        x_bar = x_start if self.q_bar is self.q_prev else rm.point_positions(self.q_bar, ids)
+        return gate_positions(rm.model, x_lag, x_start), x_bar
 
 
 @dataclass(frozen=True)
@@ -247,10 +262,10 @@ class _PointSet:
     @classmethod
     def of(cls, rm: ReducedModel, st: ReducedStep, ids: np.ndarray | None) -> "_PointSet":
         """The points ids (None: all) of `rm` with the step `st`'s lagged data."""
+        x_lag, x_bar = st.lagged_positions(rm, ids)
         if ids is None:
-            return cls(None, rm.Xp, rm.Wp, st.x_lag, st.x_bar, rm.area, st.fn)
-        return cls(ids, rm.Xp[ids], rm.Wp[ids], st.x_lag[ids], st.x_bar[ids], rm.area[ids],
-                   None if st.fn is None else st.fn[ids])
+            return cls(None, rm.Xp, rm.Wp, x_lag, x_bar, rm.area, st.fn)
+        return cls(ids, rm.Xp[ids], rm.Wp[ids], x_lag, x_bar, rm.area[ids], None if st.fn is None else st.fn[ids])
 
     def positions(self, q: np.ndarray) -> np.ndarray:
         """X_p + W_p q at these points, (k, 3) [m]."""
@@ -344,6 +359,10 @@ class ReducedSolver:
         # N q below this (p,) [m]: the signed distance below the reach plus the round-off margin
         self._near_below = (self.reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
                             if self.contact_candidates else None)
+        # the same for the lag (`_lag_points`): what the terms lag, and the gate (below the plane), is zero above
+        self.lag_reach = max([0.0] + [t.lag_reach(model) for t in self.terms])
+        self._lag_below = (self.lag_reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
+                           if self.contact_candidates and self.lag_reach < np.inf else None)
         self._point_set: tuple[ReducedStep | None, _PointSet | None] = (None, None)  # the last evaluation's
         self._point_memo: tuple | None = None  # (st, q, result) of the last second-order point-term evaluation
 
@@ -423,34 +442,48 @@ class ReducedSolver:
         if self.point_terms:
             _, gp, Hp, Wp = self._point_terms(q, st, 2)
             g = g + Wp.reshape(-1, rm.r).T @ gp.ravel()
-            active = np.flatnonzero(np.abs(Hp).sum(axis=(1, 2)) > 0.0)
+            active = np.flatnonzero(Hp.any(axis=(1, 2)))
             if active.size:
                 Wa, Ha = (Wp, Hp) if active.size == Wp.shape[0] else (Wp[active], Hp[active])
                 H = H + Wa.reshape(-1, rm.r).T @ np.matmul(Ha, Wa).reshape(-1, rm.r)
         return g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
+    def _lag_points(self, q: np.ndarray, q_lag: np.ndarray) -> np.ndarray | None:
+        """The sample points where the step's lag can be nonzero (k,) (None: all points, with the candidates off):
+        those whose signed distance at the start q or at the lag q_lag is below the terms' largest `Term.lag_reach`
+        (at least the plane, for the gate), plus CANDIDATE_MARGIN L of round-off. Elsewhere the lagged pressure is
+        0, the gate and every term's lagged support False."""
+        if self._lag_below is None:
+            return None
+        near = self.reduced.N @ q < self._lag_below
+        return np.flatnonzero(near if q_lag is q else near | (self.reduced.N @ q_lag < self._lag_below))
+
     def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None,
                lag_at: tuple[np.ndarray, np.ndarray] | None = None) -> ReducedStep:
         """Per-step constants of the model's integrator, with `previous` the latent state before (the history
         `Integrator.previous` picked; None: none); what the terms lag (`Term.begin_step`: friction's normal pressure;
         the contact-damping gate) at the contact points of the latent coordinates and rates `lag_at` = (q, qdot)
-        (None: the start of the step, `contact.lag = "start"`)."""
+        (None: the start of the step, `contact.lag = "start"`), computed at the points where it can be nonzero
+        (`_lag_points`)."""
         m, rm = self.model, self.reduced
         lag = self.integrator.lagged(latent.q, latent.qdot, h, None if previous is None else
                                      (previous.q, previous.qdot, latent.t - previous.t))
         q_lag, qdot_lag = (latent.q, latent.qdot) if lag_at is None else lag_at
-        x_start = rm.point_positions(latent.q)
-        x_lag = x_start if q_lag is latent.q else rm.point_positions(q_lag)
-        x_bar = x_start if lag.y_bar is latent.q else rm.point_positions(lag.y_bar)  # backward Euler: q_bar = q^n
-        v = (rm.Wp.reshape(-1, rm.r) @ qdot_lag).reshape(-1, 3)
+        ids = self._lag_points(latent.q, q_lag)
+        x_start = rm.point_positions(latent.q, ids)
+        x_lag = x_start if q_lag is latent.q else rm.point_positions(q_lag, ids)
+        Wp = rm.Wp if ids is None else rm.Wp[ids]
+        v = (Wp.reshape(-1, rm.r) @ qdot_lag).reshape(-1, 3)
         fn, gate, x_gate = lagged_contact(self.terms, m, x_lag, v, x_start)
         lagged = None
         for term in self.point_terms:
             support = term.lagged_support(m, x_gate, fn)
             if support is not None:
                 lagged = support if lagged is None else lagged | support
-        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, x_gate, x_bar, fn, gate, lagged)
+        if ids is not None:
+            fn, gate, lagged = (None if a is None else _scatter(a, ids, rm.points.size) for a in (fn, gate, lagged))
+        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, q_lag, fn, gate, lagged)
 
     @staticmethod
     def newton_solve(H: np.ndarray, g: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ from frictionbench.solvers.physics.friction import Friction
 from frictionbench.solvers.physics.inertia import Gravity, Inertia
 from frictionbench.solvers.physics.material import Elasticity
 from frictionbench.solvers.physics.terms import Evaluation, PointTerm, StepData, Term, TermTable
-from frictionbench.solvers.warp_runtime import init_warp
+from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
 from frictionbench.solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
 
 if TYPE_CHECKING:
@@ -231,15 +231,14 @@ class ReferencePointLaunch(PointLaunch):
 
 class KernelLaunch(PointLaunch):
     """A point term by a warp kernel of solvers/kernels.py whose arguments `inputs` names, recorded once
-    (`wp.launch(record_cmd=True)`: a recorded launch costs a few microseconds, a fresh one with these fifteen
-    arguments some 50) and relaunched on the first k points with the step h and the mode set."""
+    (`RecordedLaunch`) and relaunched on the first k points with the step h and the mode set."""
 
     kernel: wp.Kernel
 
     def __init__(self, points: PointEvaluations, term: PointTerm) -> None:
         super().__init__(points, term)
-        self.cmd = wp.launch(self.kernel, 1, inputs=self.inputs(points), device="cpu", record_cmd=True)
-        labels = [arg.label for arg in self.kernel.adj.args]
+        self.recorded = RecordedLaunch(self.kernel, 1, self.inputs(points), "cpu")
+        labels = self.recorded.labels
         self.h_at, self.mode_at = labels.index("h") if "h" in labels else None, labels.index("mode")
 
     @abstractmethod
@@ -249,11 +248,10 @@ class KernelLaunch(PointLaunch):
     def launch(self, p: PointEvaluations, h: float, mode: int) -> None:
         if p.k == 0:
             return
-        self.cmd.set_dim(p.k)
         if self.h_at is not None:
-            self.cmd.set_param_at_index(self.h_at, h)
-        self.cmd.set_param_at_index(self.mode_at, mode)
-        self.cmd.launch()
+            self.recorded.set(self.h_at, h)
+        self.recorded.set(self.mode_at, mode)
+        self.recorded.launch(p.k)
 
 
 #: The point evaluation of each point term class (`POINT_LAUNCHES.build(points, point_terms)`; a term without one

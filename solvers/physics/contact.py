@@ -170,6 +170,10 @@ class _Penalty(PointTerm):
         """The damping part acts at the damped points (`damped_points` of the gate positions x_lag) only."""
         return damped_points(x_lag, model.plane_normal, model.plane_offset) if self.kd(model) > 0.0 else None
 
+    def lag_reach(self, model: Model) -> float:
+        """The damped points lie below the plane; without damping, none."""
+        return 0.0 if self.kd(model) > 0.0 else -np.inf
+
 
 @register
 class PenaltyContact(_Penalty):

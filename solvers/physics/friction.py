@@ -126,3 +126,9 @@ class Friction(PointTerm):
     def lagged_support(self, model: Model, x_lag: np.ndarray, fn: np.ndarray | None) -> np.ndarray | None:
         """The points with a positive lagged normal pressure (f_n = 0 zeroes the energy, gradient and Hessian)."""
         return fn > 0.0
+
+    def lag_reach(self, model: Model) -> float:
+        """The lagged pressure is zero on and above the plane (penalty) or from the activation distance on
+        (barrier)."""
+        c = model.contact
+        return 0.0 if c.law == "penalty" else c.barrier_distance

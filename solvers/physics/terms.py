@@ -95,6 +95,16 @@ class Term(ABC):
         default): the term does not cap a step."""
         return 1.0
 
+    def lag_reach(self, model: Model) -> float:
+        """The signed distance to the plane [m] from which on what the term lags is zero at a contact point whose
+        positions at the start of the step and where the step lags contact both lie at least that far: its
+        `begin_step` value and, for a point term, its `lagged_support`. -inf, it lags nothing (the default for a
+        term that overrides neither); +inf (the default for any other), at any distance. It lets a backend compute
+        the lag at the points below it alone (`solvers.licrom.reduced`)."""
+        lags = type(self).begin_step is not Term.begin_step or (
+            isinstance(self, PointTerm) and type(self).lagged_support is not PointTerm.lagged_support)
+        return np.inf if lags else -np.inf
+
 
 class BodyTerm(Term):
     """A term over the whole body (inertia, gravity, elasticity, viscosity): each backend evaluates it by its own
