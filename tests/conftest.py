@@ -12,13 +12,12 @@ import pytest
 from hypothesis import settings
 from threadpoolctl import threadpool_limits
 
-settings.register_profile("deterministic", derandomize=True, database=None)
-settings.register_profile("explore")
-settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
-
 from frictionbench.scenarios.meshes import load_mesh
 from frictionbench.scenarios.model import MeshSpec
 
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.register_profile("explore")
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 threadpool_limits(1)
 
 
