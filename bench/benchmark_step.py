@@ -23,8 +23,9 @@ mid-contact state steps `--reduced-steps` steps after a warm-up step in each red
 `--repeats` runs from the same state (a step is deterministic), so that a shared machine's load moves the ratio
 less. Parts, exclusive (a part's time leaves out the timed parts called inside it):
 elastic (the cubature tets, energy and Hessian), points (contact, damping and friction at the sample points),
-reduction (the rest of the gradient and Hessian: the products with the basis), linear solve (r x r Cholesky),
-line search (the rest of the energy evaluations), step norm (|W dq|_inf over the mesh) and other; the candidate
+reduction (the rest of `ReducedSolver.evaluate`, the second-order evaluation that `candidates` runs in the line
+search too: the products with the basis), linear solve (r x r Cholesky), line search (the rest of the energy
+evaluations: `all-points` evaluates them to order 0), step norm (|W dq|_inf over the mesh) and other; the candidate
 points per evaluation; speedup against the first full-space configuration and against `all-points`; the end
 state's distance to the `all-points` run's. Compare times as ratios within one run: the machine may be shared.
 """
@@ -167,7 +168,7 @@ class _ReducedRun:
         solver.step(self.state, State(self.state.x, self.state.v, self.state.t), self.dt)  # warm-up (kernels)
         self.clock, self.counts = _Clock(), []
         for obj, method, part in ((solver.reduced, "elastic", "elastic"), (solver, "_point_terms", "points"),
-                                  (solver, "gradient_hessian", "reduction"), (solver, "newton_solve", "linear_solve"),
+                                  (solver, "evaluate", "reduction"), (solver, "newton_solve", "linear_solve"),
                                   (solver, "energy", "line_search"), (solver, "_velocity_norm", "step_norm")):
             self.clock.wrap(obj, method, part)
         candidates = solver._candidates
