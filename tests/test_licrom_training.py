@@ -220,6 +220,7 @@ def test_train_from_trajectories_writes_model_and_loss(tmp_path):
     assert model == tmp_path / "out" / "model.pt"
     ckpt = load_checkpoint(model, expected_r=3)
     assert ckpt.config["schedule"] == "cosine" and ckpt.config["sources"] == ["run.npz"]
+    assert ckpt.config["threads"] == torch.get_num_threads()  # what reproducing it needs besides the seed
     assert ckpt.identity == {"suite": "synthetic", "scenario_hashes": ["abc"], "bbox_diagonal": 1.16}
     lines = (tmp_path / "out" / "loss.csv").read_text().splitlines()
     assert lines[0] == "epoch,loss" and len(lines) == 4

@@ -271,7 +271,8 @@ def train(data: TrainingData, settings: TrainSettings, device: str = "cpu", prog
 
     device: "cpu" or "cuda"; progress: tqdm bar over epochs; identity: training identity stored in the
     checkpoint. Deterministic algorithms are enabled during training, so a seed reproduces a run on the same
-    device and thread count.
+    device and thread count (torch's, recorded as config["threads"]: a run pinned to fewer cores trains on fewer
+    threads, and its network differs).
     """
     st = settings
     dev = torch.device(device)
@@ -334,7 +335,8 @@ def train(data: TrainingData, settings: TrainSettings, device: str = "cpu", prog
         encoder_state=_cpu_state(encoder), field_state=_cpu_state(field_net),
         identity=_plain(identity or {}), loss_history=history, seed=st.seed, train_seconds=train_seconds,
         config={"epochs": st.epochs, "batch": st.batch, "points": st.points, "lr": st.lr, "schedule": st.schedule,
-                "device": str(dev), "n_frames": data.n_frames, "n_points": data.n_points},
+                "device": str(dev), "threads": torch.get_num_threads(), "n_frames": data.n_frames,
+                "n_points": data.n_points},
         versions=_versions(),
     )
 
