@@ -341,7 +341,7 @@ def test_point_terms_vanish_outside_the_candidates(block, kind, mu):
         out = np.setdiff1d(np.arange(rm.points.size), ids)
         assert 0 < ids.size and 0 < out.size
         x = rm.point_positions(q)
-        x_lag, x_bar = st.lagged_positions(rm, None)
+        x_lag, x_bar = st.lagged_positions(model, rm.Xp, rm.Wp)
         for term in solver.point_terms:
             E_out = term.at_points(model, x[out], x_lag[out], x_bar[out], rm.area[out],
                                    None if st.fn is None else st.fn[out], st.h_eff, 2)
@@ -373,7 +373,7 @@ def test_the_lag_near_the_plane_is_the_lag_at_every_point(block, kind, lag):
     assert np.abs(a.fn - b.fn).max() <= 1e-12 * b.fn.max()
     assert np.array_equal(a.gate, b.gate) and np.array_equal(a.lagged, b.lagged)
     assert not a.lagged[np.setdiff1d(np.arange(rm.points.size), ids)].any()
-    for pa, pb in zip(a.lagged_positions(rm, ids), b.lagged_positions(rm, None)):
+    for pa, pb in zip(a.lagged_positions(model, *rm.point_rows(ids)), b.lagged_positions(model, rm.Xp, rm.Wp)):
         assert np.abs(pa - pb[ids]).max() <= 1e-15 * model.L
 
 

@@ -164,11 +164,14 @@ class ReducedModel:
         """Mass-weighted least-squares coordinates of a vertex field u (n, 3): argmin_q |W q - u|_M, (r,)."""
         return project(self.W, u, self.model.mass)
 
-    def point_positions(self, q: np.ndarray, ids: np.ndarray | None = None) -> np.ndarray:
-        """Contact sample positions X_p + W_p q, (p, 3) [m], or at the sample points ids (k,) alone, (k, 3)."""
-        if ids is None:
-            return self.Xp + (self.Wp.reshape(-1, self.r) @ q).reshape(-1, 3)
-        return self.Xp[ids] + (self.Wp[ids].reshape(-1, self.r) @ q).reshape(-1, 3)
+    def point_positions(self, q: np.ndarray) -> np.ndarray:
+        """Contact sample positions X_p + W_p q, (p, 3) [m]."""
+        return _positions(self.Xp, self.Wp, q)
+
+    def point_rows(self, ids: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The rest positions X_p (k, 3) [m] and basis rows W_p (k, 3, r) of the sample points ids (k,), gathered
+        once (None: all points, not copied)."""
+        return (self.Xp, self.Wp) if ids is None else (self.Xp[ids], self.Wp[ids])
 
     def deformation_gradients(self, q: np.ndarray) -> np.ndarray:
         """F_c(q) at the cubature tets, (c, 3, 3)."""
@@ -196,6 +199,11 @@ class ReducedModel:
         c = Hs.shape[0]
         blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
         return g, (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
+
+
+def _positions(Xp: np.ndarray, Wp: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """X_p + W_p q (k, 3) [m] at points with rest positions Xp (k, 3) [m] and basis rows Wp (k, 3, r)."""
+    return Xp + (Wp.reshape(-1, Wp.shape[2]) @ q).reshape(-1, 3)
 
 
 def _scatter(values: np.ndarray, ids: np.ndarray, p: int) -> np.ndarray:
@@ -236,13 +244,14 @@ class ReducedStep:
     gate: np.ndarray | None = None
     lagged: np.ndarray | None = None
 
-    def lagged_positions(self, rm: ReducedModel, ids: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """At the sample points ids (k,) (None: all), the gate positions x_lag (`solvers.step.gate_positions` of
-        the lag's and the start's positions: what the point terms take as x_lag) and x_bar, (k, 3) [m] each."""
-        x_start = rm.point_positions(self.q_prev, ids)
-        x_lag = x_start if self.q_lag is self.q_prev else rm.point_positions(self.q_lag, ids)
-        x_bar = x_start if self.q_bar is self.q_prev else rm.point_positions(self.q_bar, ids)
-        return gate_positions(rm.model, x_lag, x_start), x_bar
+    def lagged_positions(self, model: Model, Xp: np.ndarray, Wp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """At sample points with rest positions Xp (k, 3) [m] and basis rows Wp (k, 3, r)
+        (`ReducedModel.point_rows`), the gate positions x_lag (`solvers.step.gate_positions` of the lag's and the
+        start's positions: what the point terms take as x_lag) and x_bar, (k, 3) [m] each."""
+        x_start = _positions(Xp, Wp, self.q_prev)
+        x_lag = x_start if self.q_lag is self.q_prev else _positions(Xp, Wp, self.q_lag)
+        x_bar = x_start if self.q_bar is self.q_prev else _positions(Xp, Wp, self.q_bar)
+        return gate_positions(model, x_lag, x_start), x_bar
 
 
 @dataclass(frozen=True)
@@ -262,14 +271,15 @@ class _PointSet:
     @classmethod
     def of(cls, rm: ReducedModel, st: ReducedStep, ids: np.ndarray | None) -> "_PointSet":
         """The points ids (None: all) of `rm` with the step `st`'s lagged data."""
-        x_lag, x_bar = st.lagged_positions(rm, ids)
+        Xp, Wp = rm.point_rows(ids)
+        x_lag, x_bar = st.lagged_positions(rm.model, Xp, Wp)
         if ids is None:
-            return cls(None, rm.Xp, rm.Wp, x_lag, x_bar, rm.area, st.fn)
-        return cls(ids, rm.Xp[ids], rm.Wp[ids], x_lag, x_bar, rm.area[ids], None if st.fn is None else st.fn[ids])
+            return cls(None, Xp, Wp, x_lag, x_bar, rm.area, st.fn)
+        return cls(ids, Xp, Wp, x_lag, x_bar, rm.area[ids], None if st.fn is None else st.fn[ids])
 
     def positions(self, q: np.ndarray) -> np.ndarray:
         """X_p + W_p q at these points, (k, 3) [m]."""
-        return self.Xp + (self.Wp.reshape(-1, self.Wp.shape[2]) @ q).reshape(-1, 3)
+        return _positions(self.Xp, self.Wp, q)
 
 
 @dataclass
@@ -480,9 +490,9 @@ class ReducedSolver:
                                      (previous.q, previous.qdot, latent.t - previous.t))
         q_lag, qdot_lag = (latent.q, latent.qdot) if lag_at is None else lag_at
         ids = self._lag_points(latent.q, q_lag)
-        x_start = rm.point_positions(latent.q, ids)
-        x_lag = x_start if q_lag is latent.q else rm.point_positions(q_lag, ids)
-        Wp = rm.Wp if ids is None else rm.Wp[ids]
+        Xp, Wp = rm.point_rows(ids)
+        x_start = _positions(Xp, Wp, latent.q)
+        x_lag = x_start if q_lag is latent.q else _positions(Xp, Wp, q_lag)
         v = (Wp.reshape(-1, rm.r) @ qdot_lag).reshape(-1, 3)
         fn, gate, x_gate = lagged_contact(self.terms, m, x_lag, v, x_start)
         lagged = None
