@@ -14,7 +14,8 @@ class StepStats:
 
     wall_s: the step's wall time [s]; iterations: iterations of its solve (Newton iterations, a fixed count, 1 for a
     direct update); converged: whether the solve met its criterion (True for a solver without one); residual: its
-    final convergence measure (a Newton solver's |dx|_inf / h [m/s]; 0 for a solver without one); counters: the
+    final convergence measure (a Newton solver's |dx|_inf / h [m/s], the reduced solver's an upper bound of it
+    where that settled convergence; 0 for a solver without one); counters: the
     solver's own counts (name -> count, summed over a retried step's attempts and over the run; the Newton solvers'
     are `line_search_halvings`, `stalls` and `linear_iters`: `solvers.newton.NewtonResult.step_stats`); retries:
     times the step was redone as two half steps after a failure (set by `solvers.simulate`, never by the solver; an
