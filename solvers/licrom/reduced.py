@@ -659,9 +659,10 @@ class _StepProblem(StepProblem):
         tolerance, that (an upper bound: converged, and the step's reported residual)."""
         rm, h = self.solver.reduced, self.st.h_eff
         lower = float(np.abs(rm.W_extreme @ dq).max()) / h
-        self.bounded_dq = dq if lower >= self.tol_v else None
-        if self.bounded_dq is not None:
+        if lower >= self.tol_v:
+            self.bounded_dq = dq
             return lower
+        self.bounded_dq = None
         upper = max(lower, rm.W_rest_norm * float(np.linalg.norm(dq)) / h)
         return upper if upper < self.tol_v else self.solver._velocity_norm(dq, h)
 
