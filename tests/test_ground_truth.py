@@ -193,7 +193,7 @@ def test_the_shipped_speed_gates_bind_on_speed_at_equal_accuracy_and_not_on_per_
     gates = load_gates()
     assert all(g.get("advisory") for g in gates if g["metric"] == "speedup")  # a ratio of step times: noise
     binding = [g for g in gates if g["metric"] == "speedup_equal_accuracy" and not g.get("advisory")]
-    assert {g["suite"] for g in binding} == {"quick", "paper-damped"} and all("min" in g for g in binding)
+    assert {g["suite"] for g in binding} == {"quick", "quick-damped", "paper-damped"} and all("min" in g for g in binding)
     # that their labels exist in the suites' default sets or a named set: tests/test_runner.py's guard over all gates
     damped = next(g for g in binding if g["suite"] == "paper-damped")
     bound = "at most: less accurate than the coarsest ladder run"
@@ -253,6 +253,19 @@ def test_paper_damped_is_the_papers_matrix_with_material_damping():
         assert b.scenario.plane == a.scenario.plane and b.scenario.mesh == a.scenario.mesh
     # the same ladder, under the fixed-point contact lag: friction's start-lagged pressure stalls a damped ladder
     assert damped.truth == replace(paper.truth, contact_lag="fixed-point") and paper.truth.contact_lag == "start"
+
+
+def test_quick_damped_is_quick_with_paper_dampeds_damping_and_truth_lag():
+    quick, twin, damped = load_suite("quick"), load_suite("quick-damped"), load_suite("paper-damped")
+    assert [(m.split, dict(m.labels)) for m in twin.scenarios] == [(m.split, dict(m.labels)) for m in quick.scenarios]
+    base = damped.scenarios[0].scenario
+    for a, b in zip(quick.scenarios, twin.scenarios):
+        assert a.scenario.material.damping_ratio is None and a.scenario.contact.damping_ratio is None
+        assert (b.scenario.material, b.scenario.contact) == (base.material, base.contact)  # paper-damped's damping
+        undamped = replace(b.scenario, name=a.scenario.name, description=a.scenario.description, tags=a.scenario.tags,
+                           effects=a.scenario.effects, material=a.scenario.material, contact=a.scenario.contact)
+        assert undamped == a.scenario  # only the damping differs: mesh, plane, drop and time are quick's
+    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point")
 
 
 def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):

@@ -119,7 +119,7 @@ def without(d: dict[str, Any], path: str) -> dict[str, Any]:
 
 
 @pytest.mark.parametrize(("name", "total", "train", "test"),
-                         [("verify", 12, 12, 0), ("quick", 5, 4, 1), ("paper", 34, 30, 4),
+                         [("verify", 12, 12, 0), ("quick", 5, 4, 1), ("quick-damped", 5, 4, 1), ("paper", 34, 30, 4),
                           ("paper-damped", 34, 30, 4)])
 def test_shipped_suite_loads_with_documented_counts(name: str, total: int, train: int, test: int) -> None:
     suite = load_suite(name)
@@ -131,7 +131,7 @@ def test_shipped_suite_loads_with_documented_counts(name: str, total: int, train
 
 
 def test_list_suites_names_the_shipped_files() -> None:
-    assert list_suites() == ["hard", "paper", "paper-damped", "quick", "verify"]
+    assert list_suites() == ["hard", "paper", "paper-damped", "quick", "quick-damped", "verify"]
 
 
 def test_paper_suite_is_the_papers_matrix_per_mesh() -> None:
