@@ -73,19 +73,22 @@ def test_snh_kernel_matches_numpy_reference():
     F = np.concatenate([np.eye(3)[None], np.eye(3) + 1e-9 * rng.standard_normal((1, 3, 3)),
                         np.diag([1.0, 1.0, -1.0])[None], rotation_matrix((30.0, -20.0, 70.0))[None],
                         np.eye(3) + 0.3 * rng.standard_normal((40, 3, 3)), rng.standard_normal((40, 3, 3))])
-    psi, P, H = K.snh_evaluate(F, mu, lam, K.HESSIAN)
+    psi, P, L = K.snh_evaluate(F, mu, lam, K.HESSIAN)
     assert np.abs(psi - pm.snh_energy_density(F, mu, lam)).max() < 1e-12 * mu
     assert np.abs(P - pm.snh_pk1(F, mu, lam)).max() < 1e-12 * mu
+    H = L.transpose(0, 2, 1) @ L  # the kernel's factor: (dP/dF)_+ = L^T L
     H_ref = pm.project_psd(pm.snh_dpdf(F, mu, lam))
     assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
+    dropped = ~L.any(axis=2)  # a mode of zero or negative weight is a zero row; the compressed samples have some
+    assert dropped.any() and (np.linalg.matrix_rank(L[~dropped.any(axis=1)]) == 9).all()
     pd = np.linalg.eigvalsh(_snh_scaling_block(F, mu, lam)).min(axis=1) > 0
     assert pd.any() and not pd.all()  # both ways of the kernel's scaling block: Cholesky and eigendecomposition
     psi0, P0, H0 = K.snh_evaluate(F, mu, lam, K.ENERGY)
     assert np.array_equal(psi0, psi) and P0 is None and H0 is None
     assert np.array_equal(K.snh_evaluate(F, mu, lam, K.STRESS)[1], P)
-    kept = H.copy()
+    kept = L.copy()
     K.snh_evaluate(2.0 * F, mu, lam, K.HESSIAN)  # the kernel's buffers are reused; its results are not
-    assert np.array_equal(H, kept)
+    assert np.array_equal(L, kept)
     for m in (2.0 * mu, mu):  # a changed material reaches the recorded launch, and so does the change back
         assert np.abs(K.snh_evaluate(F, m, lam, K.ENERGY)[0] - pm.snh_energy_density(F, m, lam)).max() < 1e-12 * m
     with pytest.raises(ValueError, match="device = 'gpu'"):
@@ -110,6 +113,38 @@ def test_reduced_elastic_terms_match_full_space_assembly(block):
         We = Wf[(3 * tet[:, None] + np.arange(3)).ravel()]
         H_ref += We.T @ He[e] @ We
     assert np.abs(H - H_ref).max() < 1e-8 * np.abs(H_ref).max()
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_pull_back_of_a_hessian_factor_is_that_of_the_hessian(block, dense):
+    """The elastic Hessian arrives as a factor L (H9 = L^T L): its pull-back G^T G is the pull-back of H9 itself,
+    exactly symmetric, on the dense jacobians and on the sparse ones (a full basis)."""
+    model = build_model(Scenario(name="rest", mesh=MeshSpec("block", "coarse"), plane=None), block)
+    W = smooth_basis(model.X, 20, 0.01 * model.L) if dense else full_basis(model.n)
+    rng = np.random.default_rng(1)
+    ids = np.sort(rng.choice(model.tets.shape[0], 30, replace=False))
+    rm = ReducedModel.build(model, W, (ids, rng.uniform(0.0, 3.0, 30)))
+    assert (rm.B_sparse is None) == dense
+    L = rng.standard_normal((30, 9, 9))
+    P = rng.standard_normal((30, 3, 3))
+    g, H = rm.pull_back(P, factor=L)
+    g_ref, H_ref = rm.pull_back(P, L.transpose(0, 2, 1) @ L)
+    assert np.array_equal(g, g_ref) and np.array_equal(H, H.T)
+    assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
+
+
+def test_cubature_weights_and_ids_are_checked(block):
+    model = build_model(Scenario(name="rest", mesh=MeshSpec("block", "coarse"), plane=None), block)
+    W = smooth_basis(model.X, 12, 0.01 * model.L)
+    with pytest.raises(ValueError, match=r"cubature weight -0\.5 at tet 1: weights must be finite and >= 0"):
+        ReducedModel.build(model, W, (np.array([0, 1]), np.array([1.0, -0.5])))
+    with pytest.raises(ValueError, match="cubature weight nan at tet 7"):
+        ReducedModel.build(model, W, (np.array([3, 7]), np.array([1.0, np.nan])))
+    m = model.tets.shape[0]
+    with pytest.raises(ValueError, match=rf"cubature: 1 tet ids and 1 weights; .* in \[0, {m}\)"):
+        ReducedModel.build(model, W, (np.array([m]), np.array([1.0])))
+    with pytest.raises(ValueError, match="cubature: 2 tet ids and 1 weights"):
+        ReducedModel.build(model, W, (np.array([0, 1]), np.array([1.0])))
 
 
 # ----- the complete basis is the full-space solver ------------------------------------------------------------

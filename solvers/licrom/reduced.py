@@ -145,6 +145,12 @@ class ReducedModel:
         except np.linalg.LinAlgError as err:
             raise ValueError("the basis columns are linearly dependent on this mesh (W^T M W is singular)") from err
         ids, w = all_tets(model) if cubature is None else (np.asarray(c) for c in cubature)
+        if ids.shape != w.shape or ids.ndim != 1 or ((ids < 0) | (ids >= model.tets.shape[0])).any():
+            raise ValueError(f"cubature: {ids.size} tet ids and {w.size} weights; ids must be one per weight, in "
+                             f"[0, {model.tets.shape[0]})")
+        bad = np.flatnonzero(~(np.isfinite(w) & (w >= 0)))
+        if bad.size:  # a negative weight would make the cubature energy non-convex where every tet's is convex
+            raise ValueError(f"cubature weight {w[bad[0]]:g} at tet {ids[bad[0]]}: weights must be finite and >= 0")
         F0, B = deformation_jacobians(model, W, ids)
         Bf = B.reshape(-1, r)
         sparse = r >= SPARSE_MIN_R and np.count_nonzero(Bf) <= SPARSE_DENSITY * Bf.size
@@ -189,26 +195,40 @@ class ReducedModel:
 
     def elastic(self, q: np.ndarray, mode: int) -> tuple[float, np.ndarray | None, np.ndarray | None]:
         """Cubature elastic energy [J], its gradient (r,) [N] (mode >= STRESS) and PSD-projected Hessian (r, r)
-        [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c). One kernel launch."""
+        [N/m] (mode == HESSIAN): sum_c w_c V_c (Psi, B_c^T vec P, B_c^T (dP/dF)_+ B_c). One kernel launch, whose
+        Hessian comes as its factor (`solvers.licrom.kernels`)."""
         m = self.model
-        psi, P, H9 = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode, self.device)
-        return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None,
-                                                        H9 if mode == K.HESSIAN else None)
+        psi, P, L = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode, self.device)
+        return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None, factor=L)
 
-    def pull_back(self, P: np.ndarray | None, H9: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """The cubature sums of per-tet stresses P (c, 3, 3) [Pa] and density Hessians H9 (c, 9, 9) [Pa] (row-major
-        vec) in the latent coordinates: sum_c w_c V_c B_c^T vec P_c (r,) [N] and sum_c w_c V_c B_c^T H9_c B_c (r, r)
-        [N/m] (None where the input is None)."""
+    def pull_back(self, P: np.ndarray | None, H9: np.ndarray | None = None, factor: np.ndarray | None = None
+                  ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The cubature sums of per-tet stresses P (c, 3, 3) [Pa] and density Hessians (row-major vec) in the
+        latent coordinates: sum_c w_c V_c B_c^T vec P_c (r,) [N] and sum_c w_c V_c B_c^T H9_c B_c (r, r) [N/m],
+        the Hessians given either as H9 (c, 9, 9) [Pa] or by a factor L (c, 9, 9) [sqrt(Pa)] with H9_c = L_c^T L_c
+        (`factor`: then the sum is G^T G with G the stacked sqrt(w_c V_c) L_c B_c, (9c, r), and exactly symmetric).
+        None where the input is None."""
         Bf = self.B.reshape(-1, self.r)
         g = None if P is None else Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
+        if factor is not None:
+            Ls = np.sqrt(self.wV)[:, None, None] * factor
+            if self.B_sparse is None:
+                G = np.matmul(Ls, self.B).reshape(-1, self.r)
+                return g, G.T @ G
+            G = self._block_diagonal(Ls) @ self.B_sparse
+            return g, (G.T @ G).toarray()
         if H9 is None:
             return g, None
         Hs = self.wV[:, None, None] * H9
         if self.B_sparse is None:
             return g, Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
-        c = Hs.shape[0]
-        blocks = sp.bsr_matrix((Hs, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
-        return g, (self.B_sparse.T @ (blocks @ self.B_sparse)).toarray()
+        return g, (self.B_sparse.T @ (self._block_diagonal(Hs) @ self.B_sparse)).toarray()
+
+    @staticmethod
+    def _block_diagonal(blocks: np.ndarray) -> sp.bsr_matrix:
+        """The block-diagonal sparse matrix of (c, 9, 9) blocks, (9c, 9c)."""
+        c = blocks.shape[0]
+        return sp.bsr_matrix((blocks, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
 
 
 def _positions(Xp: np.ndarray, Wp: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -472,10 +492,11 @@ class ReducedSolver:
             Ep, gp, Hp, Wp = self._point_terms(q, st, 2)
             E += Ep
             g = g + Wp.reshape(-1, rm.r).T @ gp.ravel()
-            active = np.flatnonzero(Hp.any(axis=(1, 2)))
-            if active.size:
-                Wa, Ha = (Wp, Hp) if active.size == Wp.shape[0] else (Wp[active], Hp[active])
-                H = H + Wa.reshape(-1, rm.r).T @ np.matmul(Ha, Wa).reshape(-1, rm.r)
+            if not self.contact_candidates:  # all the sample points, most out of contact: the nonzero blocks only
+                active = np.flatnonzero(Hp.any(axis=(1, 2)))
+                Wp, Hp = Wp[active], Hp[active]
+            if Wp.shape[0]:  # the candidates are near the plane: nearly all in contact; a zero block adds zeros
+                H = H + Wp.reshape(-1, rm.r).T @ np.matmul(Hp, Wp).reshape(-1, rm.r)
         self._memo = st, q.copy(), (E, g, H)
         return E, g, H
 
