@@ -79,3 +79,24 @@ def test_pod_refuses_another_mesh(trained, tmp_path):
     pod.setup(same)
     assert pod.solver.reduced.r == 6 and pod.basis.shape == (same.n, 3, 6)
     assert np.isfinite(np.load(params["basis"])["W"]).all()
+
+
+def test_pod_selects_an_optimised_cubature_on_its_training_mesh(trained, tmp_path):
+    """`cubature = "optimized:N"` gives POD a cubature selected from its training states, stored once beside the
+    basis and used by the solver (not the uniform fallback of a reduced model without one)."""
+    suite, out = trained
+    runs = sorted((out / "runs").glob("*/trajectory.npz"))
+    params = Pod(r=14, affine=True, cubature="optimized:20").prepare("block", runs, tmp_path, "tinytrain")
+    path = Path(params["cubature_file"])
+    assert path.parent == Path(params["basis"]).parent
+    stamp = path.stat().st_mtime_ns
+    assert Pod(r=14, affine=True, cubature="optimized:20").prepare("block", runs, tmp_path, "tinytrain") == params
+    assert path.stat().st_mtime_ns == stamp  # selected once
+    model = build_model(resolve_scenario("verify/block_fall"), load_mesh(MeshSpec("block", "coarse")))
+    pod = Pod(r=6, affine=True, cubature="optimized:20", **params)
+    pod.setup(model)
+    info = pod.describe()
+    assert info["cubature_used"] == "optimized:20" and 1 <= info["cubature_count"] <= 20
+    ids = pod.solver.reduced.cub_ids
+    assert ids.size == info["cubature_count"] and (pod.solver.reduced.wV > 0).all()
+    assert "cubature_file" not in Pod(r=6).prepare("block", runs, tmp_path, "tinytrain")

@@ -15,6 +15,7 @@ import hashlib
 import json
 import time
 from abc import abstractmethod
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -127,30 +128,40 @@ class Affine(_Reduced):
 # ----- POD ---------------------------------------------------------------------------------------------------
 class Pod(_Reduced):
     """POD modes of the training displacements (`r` of them, plus the affine fields with `affine`); bound to the
-    training mesh."""
+    training mesh. With `cubature = "optimized:N"` the cubature is selected on the training mesh from the training
+    states in the basis (`cubature_file`, set by `prepare`), as LiCROM's is."""
 
     name = "pod"
-    parameters = _COMMON | {"r": 20, "affine": False, "basis": "", "shape": ""}
+    parameters = _COMMON | {"r": 20, "affine": False, "basis": "", "shape": "", "cubature_file": ""}
 
     def prepare(self, shape: str, trajectories: list[Path], out_dir: Path, suite: str) -> dict:
-        """SVD modes of the training displacements of one shape, stored with the training mesh they belong to."""
-        return {"shape": shape, "basis": _pod_basis_file(shape, trajectories, self.params, out_dir, suite)}
+        """SVD modes of the training displacements of one shape, stored with the training mesh they belong to, and
+        an optimised cubature of them if asked for."""
+        basis = _pod_basis_file(shape, trajectories, self.params, out_dir, suite)
+        out = {"shape": shape, "basis": basis}
+        cubature = _cubature_file(Path(basis).parent, str(self.params.get("cubature", "all")),
+                                  lambda model: _load_pod(basis)[0], trajectories, int(self.params.get("seed", 0)))
+        return out | ({"cubature_file": cubature} if cubature else {})
 
     def skip(self, model: Model) -> str | None:
         """POD cannot remesh: any mesh but its training mesh."""
-        with np.load(self.params["basis"]) as z:
-            X = z["X"]
+        X = _load_pod(self.params["basis"])[1]
         if X.shape != model.X.shape or not np.allclose(X, model.X):
             return (f"pod basis {self.params['basis']}: bound to its training mesh ({len(X)} vertices); this mesh "
                     f"has {model.n} vertices. POD cannot remesh: use licrom or affine")
         return None
 
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
-        """The stored modes and their training time."""
+        """The stored modes, their optimised cubature (if any) and their training time."""
         path = self.params["basis"]
-        with np.load(path) as z:
-            W = z["W"]
-        return W, None, {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]}
+        return (_load_pod(path)[0], _stored_cubature(self.params["cubature_file"]),
+                {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]})
+
+
+def _load_pod(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """A stored POD basis W (n, 3, r) and its training mesh's rest positions X (n, 3) [m] (arrays, no pickle)."""
+    with np.load(path, allow_pickle=False) as z:
+        return z["W"], z["X"]
 
 
 def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_dir: Path, suite: str) -> str:
@@ -192,19 +203,33 @@ def _train_licrom(shape: str, trajectories: list[Path], params: dict, models_dir
         train_from_trajectories([str(p) for p in trajectories], folder, TrainSettings(**settings), device,
                                 progress=True, identity={"suite": suite, "shape": shape})
     out = {"shape": shape, "checkpoint": str(ckpt_path)}
-    spec = str(params.get("cubature", "all"))
-    if spec.startswith("optimized:"):
-        cub_path = folder / f"cubature_{spec.replace(':', '_')}.json"
-        if not cub_path.is_file():
-            traj = Trajectory.load(trajectories[0])
-            model = _model_of(traj)
-            W = evaluate_basis(load_checkpoint(ckpt_path), model.X)
-            q = _training_q(W, model.mass, trajectories)
-            ids, weights = optimized_cubature(model, W, q, int(spec.split(":")[1]), seed=settings["seed"])
-            write_json_atomic(cub_path, {"ids": ids.tolist(), "weights": weights.tolist(), "n_vertices": model.n,
-                                         "n_tets": int(len(model.tets))})
-        out["cubature_file"] = str(cub_path)
-    return out
+    cubature = _cubature_file(folder, str(params.get("cubature", "all")),
+                              lambda model: evaluate_basis(load_checkpoint(ckpt_path), model.X), trajectories,
+                              settings["seed"])
+    return out | ({"cubature_file": cubature} if cubature else {})
+
+
+def _cubature_file(folder: Path, spec: str, basis: Callable[[Model], np.ndarray], trajectories: list[Path],
+                   seed: int) -> str | None:
+    """For `spec` = "optimized:N", the file of that cubature selected on the training mesh (`optimized_cubature`
+    on the training frames projected onto `basis(model)`, the basis W (n, 3, r) on that mesh), computed once and
+    stored in the model's folder; None for any other spec."""
+    if not spec.startswith("optimized:"):
+        return None
+    path = folder / f"cubature_{spec.replace(':', '_')}.json"
+    if not path.is_file():
+        model = _model_of(Trajectory.load(trajectories[0]))
+        W = basis(model)
+        ids, weights = optimized_cubature(model, W, _training_q(W, model.mass, trajectories), int(spec.split(":")[1]),
+                                          seed=seed)
+        write_json_atomic(path, {"ids": ids.tolist(), "weights": weights.tolist(), "n_vertices": model.n,
+                                 "n_tets": int(len(model.tets))})
+    return str(path)
+
+
+def _stored_cubature(path: str) -> dict | None:
+    """A stored optimised cubature (`_cubature_file`; JSON), None without one."""
+    return json.loads(Path(path).read_text()) if path else None
 
 
 def _model_of(traj: Trajectory) -> Model:
@@ -236,5 +261,5 @@ class Licrom(_Reduced):
 
         p = self.params
         self.checkpoint = load_checkpoint(p["checkpoint"], expected_r=p["r"])
-        stored = json.loads(Path(p["cubature_file"]).read_text()) if p["cubature_file"] else None
-        return evaluate_basis(self.checkpoint, model.X), stored, {"train_s": self.checkpoint.train_seconds}
+        return (evaluate_basis(self.checkpoint, model.X), _stored_cubature(p["cubature_file"]),
+                {"train_s": self.checkpoint.train_seconds})
