@@ -221,7 +221,7 @@ def _cubature_file(folder: Path, spec: str, basis: Callable[[Model], np.ndarray]
         model = _model_of(Trajectory.load(trajectories[0]))
         W = basis(model)
         ids, weights = optimized_cubature(model, W, _training_q(W, model.mass, trajectories), int(spec.split(":")[1]),
-                                          seed=seed)
+                                          seed=seed, progress=True)
         write_json_atomic(path, {"ids": ids.tolist(), "weights": weights.tolist(), "n_vertices": model.n,
                                  "n_tets": int(len(model.tets))})
     return str(path)
