@@ -77,17 +77,21 @@ def test_the_rank_dynamics_set_runs_every_variant_at_the_truth_ladders_step_sett
     assert all("rank-dynamics" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
-def test_the_pod_cubature_set_draws_curves_at_the_truth_ladders_settings():
+def test_the_pod_cubature_set_draws_curves_under_both_lags():
     sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
     pod = variant_set("pod-cubature")
-    assert len(pod) == 12 and len({v.label for v in pod}) == 12 and all(v.solver == "pod" for v in pod)
+    assert len(pod) == 24 and len({v.label for v in pod}) == 24 and all(v.solver == "pod" for v in pod)
     assert {(v.params["r"], v.params["cubature"], v.training) for v in pod} == {
         (r, f"optimized:{c}", data) for r, c in ((36, 90), (84, 210)) for data in ("truth", "reference")}
+    lags = []
     for v in pod:
         level = v.scenario(sc)
-        assert (level.time.integrator, level.contact.lag) == ("bdf2", "fixed-point")
+        assert level.time.integrator == "bdf2" and v.model == v.curve.removesuffix("-bdf2")
         assert level.time.dt in (pytest.approx(0.01), pytest.approx(0.005), pytest.approx(0.0025))
-    assert len({v.curve for v in pod}) == 4 and all(v.model == v.curve.removesuffix("-bdf2") for v in pod)
+        lags.append(level.contact.lag)
+        assert (level.contact.lag == "fixed-point") == ("-fixed-point-" in v.label)
+    assert lags.count("start") == lags.count("fixed-point") == 12 and len({v.curve for v in pod}) == 8
+    assert all("pod-cubature" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
     assert all("pod-cubature" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
