@@ -115,22 +115,30 @@ def test_reduced_elastic_terms_match_full_space_assembly(block):
     assert np.abs(H - H_ref).max() < 1e-8 * np.abs(H_ref).max()
 
 
+@pytest.mark.parametrize("rows", [9, 15])
 @pytest.mark.parametrize("dense", [True, False])
-def test_pull_back_of_a_hessian_factor_is_that_of_the_hessian(block, dense):
-    """The elastic Hessian arrives as a factor L (H9 = L^T L): its pull-back G^T G is the pull-back of H9 itself,
-    exactly symmetric, on the dense jacobians and on the sparse ones (a full basis)."""
+def test_pull_back_of_a_hessian_factor_is_that_of_the_hessian(block, dense, rows):
+    """The kernels' density Hessians arrive as factors L (k x 9, H9 = L^T L: 9 rows for SNH, 15 for the viscous
+    term): the pull-back G^T G is sum_c w_c V_c B_c^T H9_c B_c, exactly symmetric, on the dense jacobians and on
+    the sparse ones (a full basis); the gradient is sum_c w_c V_c B_c^T vec P_c."""
     model = build_model(Scenario(name="rest", mesh=MeshSpec("block", "coarse"), plane=None), block)
     W = smooth_basis(model.X, 20, 0.01 * model.L) if dense else full_basis(model.n)
     rng = np.random.default_rng(1)
     ids = np.sort(rng.choice(model.tets.shape[0], 30, replace=False))
-    rm = ReducedModel.build(model, W, (ids, rng.uniform(0.0, 3.0, 30)))
+    w = rng.uniform(0.0, 3.0, 30)
+    rm = ReducedModel.build(model, W, (ids, w))
     assert (rm.B_sparse is None) == dense
-    L = rng.standard_normal((30, 9, 9))
+    L = rng.standard_normal((30, rows, 9))
     P = rng.standard_normal((30, 3, 3))
-    g, H = rm.pull_back(P, factor=L)
-    g_ref, H_ref = rm.pull_back(P, L.transpose(0, 2, 1) @ L)
-    assert np.array_equal(g, g_ref) and np.array_equal(H, H.T)
+    g, H = rm.pull_back(P, L)
+    B = rm.B  # (c, 9, r): dvec F_c / dq
+    wV = w * model.vol[ids]
+    H_ref = sum(wV[c] * B[c].T @ L[c].T @ L[c] @ B[c] for c in range(30))
+    g_ref = sum(wV[c] * B[c].T @ P[c].ravel() for c in range(30))
+    assert np.array_equal(H, H.T)
     assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
+    assert np.abs(g - g_ref).max() < 1e-12 * np.abs(g_ref).max()
+    assert rm.pull_back(None, None) == (None, None)
 
 
 def test_cubature_weights_and_ids_are_checked(block):

@@ -18,6 +18,7 @@ from frictionbench.scenarios.model import Initial, Material, MeshSpec, Scenario,
 from frictionbench.solvers.baselines import full_basis
 from frictionbench.solvers import kernels as K
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+from frictionbench.solvers.licrom import kernels as RK
 from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedState
 from frictionbench.solvers.model import Model, build_model, initial_state, rotation_matrix
 from frictionbench.solvers.physics import material as pm
@@ -152,6 +153,29 @@ def test_reduced_evaluation_matches_the_full_space_reference(box):
     u = (x - model.X)[pts.vertices]
     sample = viscous.sample_gradient(q, st, u, u)
     assert np.abs(sample - ref_g[pts.vertices]).max() < 1e-11 * np.abs(ref_g).max()
+
+
+def test_reduced_viscous_kernel_matches_numpy_reference():
+    """The reduced solver's viscous kernel: density, stress and the factor of the projected density Hessian
+    (L^T L) equal `viscous_density`, `viscous_stress` and `viscous_dpdf` at strains that stretch, compress and
+    shear against F_bar (A definite and indefinite, so that the projection acts), and at rest."""
+    rng = np.random.default_rng(4)
+    F = np.concatenate([np.eye(3)[None], np.eye(3) + 0.3 * rng.standard_normal((40, 3, 3))])
+    F_bar = np.concatenate([np.eye(3)[None], np.eye(3) + 0.3 * rng.standard_normal((40, 3, 3))])
+    c = 35.0
+    density, P, L = RK.viscous_evaluate(F, F_bar, c)
+    assert np.abs(density - pv.viscous_density(F, F_bar, c)).max() < 1e-12 * c
+    assert np.abs(P - pv.viscous_stress(F, F_bar, c)).max() < 1e-12 * c
+    H_ref = pv.viscous_dpdf(F, F_bar, c)
+    assert L.shape == (41, RK.VISCOUS_ROWS, 9)
+    assert np.abs(L.transpose(0, 2, 1) @ L - H_ref).max() < 1e-12 * np.abs(H_ref).max()
+    A = pv.green_strain(F) - pv.green_strain(F_bar)
+    definite = np.linalg.eigvalsh(A).min(axis=1) >= 0
+    assert definite.any() and not definite.all()  # both sides of the projection
+    assert density[0] == 0.0 and not L[0, 6:].any() and L[0, :6].any()  # at rest: no rate, only the damping J^T J
+    d0, P0, L0 = RK.viscous_evaluate(F, F_bar, c, RK.ENERGY)
+    assert np.array_equal(d0, density) and P0 is None and L0 is None
+    assert np.array_equal(RK.viscous_evaluate(F, F_bar, c, RK.STRESS)[1], P)
 
 
 # ----- physics ------------------------------------------------------------------------------------------------

@@ -12,6 +12,10 @@ density, the cofactor and the analytic eigensystem of dP/dF), and each output mi
 solvers/physics/material.py (row-major vec: vec(F)[3 i + j] = F[i, j]) and is tested against it. Measured on this
 project's 2-core CPU machine at 60 tets: ~15 us a call for the energy or the stress (mostly the launch), ~100-150 us
 with the Hessian factor (~1.5-2.3 us a tet, the machine's speed varying from day to day).
+
+The Kelvin-Voigt damping's density, stress and projected density Hessian (solvers/physics/viscosity.py) come from a
+second kernel of the same shape (`viscous_evaluate`), its Hessian also as a factor (15 rows: the six distinct rows
+of the Green strain's jacobian, and the nine modes of I (x) A_+).
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from frictionbench.solvers.kernels import cofactor, snh_eigensystem, snh_mode, snh_psi
+from frictionbench.solvers.kernels import cofactor, green_strain, snh_eigensystem, snh_mode, snh_psi
 from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
 
 f64 = wp.float64
@@ -27,7 +31,11 @@ f64 = wp.float64
 ENERGY, STRESS, HESSIAN = 0, 1, 2
 """Evaluation modes: Psi only; Psi and P; Psi, P and the factor L of (dP/dF)_+ = L^T L."""
 _WIDTH = {ENERGY: 1, STRESS: 10, HESSIAN: 91}
-"""Columns of the kernel's packed output row per tet: [Psi, vec P (9), L (81, row-major)]."""
+"""Columns of the SNH kernel's packed output row per tet: [Psi, vec P (9), L (81, row-major)]."""
+VISCOUS_ROWS = 15
+"""Rows of the viscous kernel's Hessian factor: 6 of the strain jacobian, 9 of I (x) A_+."""
+_VISCOUS_WIDTH = {ENERGY: 1, STRESS: 10, HESSIAN: 10 + 9 * VISCOUS_ROWS}
+"""Columns of the viscous kernel's packed output row per tet: [density, vec P (9), L (135, row-major)]."""
 DEVICES = ("cpu", "cuda")
 
 
@@ -59,15 +67,96 @@ def snh_kernel(F: wp.array(dtype=wp.mat33d), mu: f64, lam: f64, out: wp.array2d(
                     out[e, 10 + 9 * m + 3 * i + j] = w * Q[i, j]
 
 
+@wp.kernel
+def viscous_kernel(F: wp.array(dtype=wp.mat33d), F_bar: wp.array(dtype=wp.mat33d), c: f64,
+                   out: wp.array2d(dtype=f64)):
+    """Kelvin-Voigt per tet e, with A = E(F) - E(F_bar) and c = eta / h_eff [Pa]: out[e, 0] = c |A|_F^2; if out has
+    >= 10 columns, out[e, 1:10] = vec P, P = 2 c F A; if it has 145, out[e, 10:145] = L (15x9, row-major) with
+    L^T L = 2 c (J^T J + I (x) A_+) (`solvers.physics.viscosity.viscous_dpdf`, projected): rows 0-5 sqrt(2 c) times
+    the rows of J = dvec E / dvec F for E's entries (0,0), (1,1), (2,2), (0,1), (0,2), (1,2) (the off-diagonal ones
+    times sqrt 2: their twins (l, j) are the same row), rows 6 + 3 m + i sqrt(2 c max(lambda_m, 0)) (e_i (x) q_m)
+    for A's eigenpairs (lambda_m, q_m)."""
+    e = wp.tid()
+    Fm = F[e]
+    A = green_strain(Fm) - green_strain(F_bar[e])
+    out[e, 0] = c * wp.ddot(A, A)
+    width = out.shape[1]
+    if width >= 10:
+        P = f64(2.0) * c * Fm * A
+        for i in range(3):
+            for j in range(3):
+                out[e, 1 + 3 * i + j] = P[i, j]
+    if width >= 10 + 9 * 15:
+        s2c = wp.sqrt(f64(2.0) * c)
+        for p in range(6):
+            j = p
+            l = p
+            w = s2c
+            if p >= 3:
+                j = (p - 3) // 2  # p = 3, 4, 5: (0, 1), (0, 2), (1, 2)
+                l = p - 2 - (p - 3) // 2
+                w = s2c * wp.sqrt(f64(2.0))
+            for i in range(3):
+                for k in range(3):
+                    v = f64(0.0)
+                    if k == l:
+                        v += f64(0.5) * Fm[i, j]
+                    if k == j:
+                        v += f64(0.5) * Fm[i, l]
+                    out[e, 10 + 9 * p + 3 * i + k] = w * v
+        Q = wp.mat33d()
+        lam = wp.vec3d()
+        wp.eig3(A, Q, lam)
+        for m in range(3):
+            w = wp.sqrt(f64(2.0) * c * wp.max(lam[m], f64(0.0)))
+            for i0 in range(3):
+                for i in range(3):
+                    for j in range(3):
+                        v = f64(0.0)
+                        if i == i0:
+                            v = w * Q[j, m]
+                        out[e, 10 + 9 * (6 + 3 * m + i0) + 3 * i + j] = v
+
+
 def check_device(device: str) -> None:
     """Raise ValueError naming `device` unless the kernel can run there (DEVICES)."""
     if device not in DEVICES:
         raise ValueError(f"device = {device!r}: expected one of {DEVICES}")
 
 
-_buffers: dict[tuple[int, int, str], tuple[RecordedLaunch, wp.array, wp.array, np.ndarray, np.ndarray]] = {}
-"""(tets, width, device) -> the kernel's launch (`RecordedLaunch`), its input and output arrays, allocated once and
-reused by every call, and on the CPU their numpy views (on CUDA, None)."""
+_buffers: dict[tuple[str, int, int, str], tuple] = {}
+"""(kernel, tets, width, device) -> its launch (`RecordedLaunch`), its input arrays and output array, allocated once
+and reused by every call, and on the CPU their numpy views (on CUDA, None)."""
+
+
+def _evaluate(kernel: wp.Kernel, inputs: list[np.ndarray], scalars: list[float], width: int, rows: int,
+              device: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """One launch of a per-tet kernel of this module on the (c, 3, 3) arrays `inputs` and the scalar arguments
+    `scalars`, into a (c, width) output: its first column (c,), vec P (c, 3, 3) where width >= 10 and the Hessian
+    factor (c, rows, 9) where width > 10 (else None); new arrays."""
+    check_device(device)
+    init_warp()
+    c = inputs[0].shape[0]
+    key = (kernel.key, c, width, device)
+    if key not in _buffers:
+        arrays = [wp.empty(c, dtype=wp.mat33d, device=device) for _ in inputs]
+        out_wp = wp.empty((c, width), dtype=f64, device=device)
+        views = [a.numpy() for a in arrays] + [out_wp.numpy()] if device == "cpu" else None
+        _buffers[key] = (RecordedLaunch(kernel, c, [*arrays, *(1.0 for _ in scalars), out_wp], device), arrays,
+                         out_wp, views)
+    launch, arrays, out_wp, views = _buffers[key]
+    for k, a in enumerate(inputs):
+        if views is None:
+            arrays[k].assign(np.ascontiguousarray(a, dtype=np.float64))
+        else:
+            views[k][...] = a
+    for k, value in enumerate(scalars):
+        launch.set(len(inputs) + k, float(value))
+    launch.launch(c)
+    out = out_wp.numpy().copy() if views is None else views[-1].copy()
+    P = out[:, 1:10].reshape(c, 3, 3) if width >= 10 else None
+    L = out[:, 10:].reshape(c, rows, 9) if width > 10 else None
+    return out[:, 0], P, L
 
 
 def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, device: str = "cpu"
@@ -75,23 +164,12 @@ def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, devi
     """Psi (c,) [J/m^3], P (c, 3, 3) [Pa] (mode >= STRESS, else None) and the factor L (c, 9, 9) [sqrt(Pa)] of
     (dP/dF)_+ = L_c^T L_c (row-major vec; mode == HESSIAN, else None) at F (c, 3, 3), on `device` ("cpu" or
     "cuda"). One kernel launch; the results are new arrays."""
-    check_device(device)
-    init_warp()
-    c = F.shape[0]
-    key = (c, _WIDTH[mode], device)
-    if key not in _buffers:
-        F_wp, out_wp = wp.empty(c, dtype=wp.mat33d, device=device), wp.empty(key[:2], dtype=f64, device=device)
-        views = (F_wp.numpy(), out_wp.numpy()) if device == "cpu" else (None, None)
-        _buffers[key] = (RecordedLaunch(snh_kernel, c, [F_wp, 1.0, 1.0, out_wp], device), F_wp, out_wp) + views
-    launch, F_wp, out_wp, F_view, out_view = _buffers[key]
-    if F_view is None:
-        F_wp.assign(np.ascontiguousarray(F, dtype=np.float64))
-    else:
-        F_view[...] = F
-    launch.set(1, float(mu))
-    launch.set(2, float(lam))
-    launch.launch(c)
-    out = out_wp.numpy().copy() if out_view is None else out_view.copy()
-    P = out[:, 1:10].reshape(c, 3, 3) if mode >= STRESS else None
-    L = out[:, 10:].reshape(c, 9, 9) if mode == HESSIAN else None
-    return out[:, 0], P, L
+    return _evaluate(snh_kernel, [F], [mu, lam], _WIDTH[mode], 9, device)
+
+
+def viscous_evaluate(F: np.ndarray, F_bar: np.ndarray, c: float, mode: int = HESSIAN, device: str = "cpu"
+                     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Kelvin-Voigt at F against F_bar (c, 3, 3) with c = eta / h_eff [Pa]: the density (c,) [J/m^3], P (c, 3, 3)
+    [Pa] (mode >= STRESS, else None) and the factor L (c, 15, 9) [sqrt(Pa)] of the projected density Hessian
+    2 c (J^T J + I (x) A_+) = L_c^T L_c (mode == HESSIAN, else None); `viscous_kernel`. One launch; new arrays."""
+    return _evaluate(viscous_kernel, [F, F_bar], [c], _VISCOUS_WIDTH[mode], VISCOUS_ROWS, device)

@@ -199,36 +199,25 @@ class ReducedModel:
         Hessian comes as its factor (`solvers.licrom.kernels`)."""
         m = self.model
         psi, P, L = K.snh_evaluate(self.deformation_gradients(q), m.mu_snh, m.lam_snh, mode, self.device)
-        return (float(self.wV @ psi),) + self.pull_back(P if mode >= K.STRESS else None, factor=L)
+        return (float(self.wV @ psi),) + self.pull_back(P, L)
 
-    def pull_back(self, P: np.ndarray | None, H9: np.ndarray | None = None, factor: np.ndarray | None = None
+    def pull_back(self, P: np.ndarray | None, factor: np.ndarray | None
                   ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """The cubature sums of per-tet stresses P (c, 3, 3) [Pa] and density Hessians (row-major vec) in the
-        latent coordinates: sum_c w_c V_c B_c^T vec P_c (r,) [N] and sum_c w_c V_c B_c^T H9_c B_c (r, r) [N/m],
-        the Hessians given either as H9 (c, 9, 9) [Pa] or by a factor L (c, 9, 9) [sqrt(Pa)] with H9_c = L_c^T L_c
-        (`factor`: then the sum is G^T G with G the stacked sqrt(w_c V_c) L_c B_c, (9c, r), and exactly symmetric).
-        None where the input is None."""
+        """The cubature sums of per-tet stresses P (c, 3, 3) [Pa] and density Hessians (row-major vec) given by their
+        factors L (c, k, 9) [sqrt(Pa)], H9_c = L_c^T L_c, in the latent coordinates: sum_c w_c V_c B_c^T vec P_c (r,)
+        [N] and sum_c w_c V_c B_c^T H9_c B_c (r, r) [N/m], the latter as G^T G with G the stacked
+        sqrt(w_c V_c) L_c B_c (kc, r): exactly symmetric. None where the input is None."""
         Bf = self.B.reshape(-1, self.r)
         g = None if P is None else Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
-        if factor is not None:
-            Ls = np.sqrt(self.wV)[:, None, None] * factor
-            if self.B_sparse is None:
-                G = np.matmul(Ls, self.B).reshape(-1, self.r)
-                return g, G.T @ G
-            G = self._block_diagonal(Ls) @ self.B_sparse
-            return g, (G.T @ G).toarray()
-        if H9 is None:
+        if factor is None:
             return g, None
-        Hs = self.wV[:, None, None] * H9
+        Ls = np.sqrt(self.wV)[:, None, None] * factor
         if self.B_sparse is None:
-            return g, Bf.T @ np.matmul(Hs, self.B).reshape(-1, self.r)
-        return g, (self.B_sparse.T @ (self._block_diagonal(Hs) @ self.B_sparse)).toarray()
-
-    @staticmethod
-    def _block_diagonal(blocks: np.ndarray) -> sp.bsr_matrix:
-        """The block-diagonal sparse matrix of (c, 9, 9) blocks, (9c, 9c)."""
-        c = blocks.shape[0]
-        return sp.bsr_matrix((blocks, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
+            G = np.matmul(Ls, self.B).reshape(-1, self.r)
+            return g, G.T @ G
+        c, k = factor.shape[:2]
+        G = sp.bsr_matrix((Ls, np.arange(c), np.arange(c + 1)), shape=(k * c, 9 * c)) @ self.B_sparse
+        return g, (G.T @ G).toarray()
 
 
 def _positions(Xp: np.ndarray, Wp: np.ndarray, q: np.ndarray) -> np.ndarray:

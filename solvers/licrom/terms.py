@@ -25,7 +25,7 @@ from frictionbench.solvers.physics.inertia import Gravity, Inertia
 from frictionbench.solvers.physics.material import Elasticity
 from frictionbench.solvers.physics.terms import Evaluation, PointTerm, StepData, Term, TermTable
 from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
-from frictionbench.solvers.physics.viscosity import Viscosity, viscous_density, viscous_dpdf, viscous_stress
+from frictionbench.solvers.physics.viscosity import Viscosity
 
 if TYPE_CHECKING:
     from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep, _PointSet
@@ -136,21 +136,21 @@ class _Elasticity(BodyEvaluation):
 
 @EVALUATIONS.register(Viscosity)
 class _Viscosity(BodyEvaluation):
+    def _evaluate(self, q: np.ndarray, st: ReducedStep, mode: int) -> Evaluation:
+        """The viscous kernel (`kernels.viscous_evaluate`) at F_c(q) against F_c(q_bar), c = eta / h_eff."""
+        rm = self.rs.reduced
+        return K.viscous_evaluate(rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar),
+                                  self.rs.model.viscosity / st.h_eff, mode, rm.device)
+
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """The cubature sum at F_c(q) against F_c(q_bar): energy, gradient B^T (w V P) and Hessian B^T (w V H9) B."""
-        rm, c = self.rs.reduced, self.rs.model.viscosity / st.h_eff
-        F, F_bar = rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar)
-        E = float(rm.wV @ viscous_density(F, F_bar, c))
-        if order == 0:
-            return E, None, None
-        return (E,) + rm.pull_back(viscous_stress(F, F_bar, c), viscous_dpdf(F, F_bar, c) if order == 2 else None)
+        """The cubature sum: energy, gradient B^T (w V P) and Hessian B^T (w V H9) B from its factor (one launch)."""
+        rm = self.rs.reduced
+        density, P, L = self._evaluate(q, st, (K.ENERGY, K.STRESS, K.HESSIAN)[order])
+        return (float(rm.wV @ density),) + rm.pull_back(P, L)
 
     def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
         """The cubature tets' viscous forces w_c V_c P_c g_a on their vertices."""
-        rm = self.rs.reduced
-        P = viscous_stress(rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar),
-                           self.rs.model.viscosity / st.h_eff)
-        return self.rs.samples.forces(rm.wV, P)
+        return self.rs.samples.forces(self.rs.reduced.wV, self._evaluate(q, st, K.STRESS)[1])
 
 
 # ----- the point terms ---------------------------------------------------------------------------------------------
