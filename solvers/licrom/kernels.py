@@ -71,7 +71,7 @@ def snh_kernel(F: wp.array(dtype=wp.mat33d), mu: f64, lam: f64, out: wp.array2d(
 def viscous_kernel(F: wp.array(dtype=wp.mat33d), F_bar: wp.array(dtype=wp.mat33d), c: f64,
                    out: wp.array2d(dtype=f64)):
     """Kelvin-Voigt per tet e, with A = E(F) - E(F_bar) and c = eta / h_eff [Pa]: out[e, 0] = c |A|_F^2; if out has
-    >= 10 columns, out[e, 1:10] = vec P, P = 2 c F A; if it has 145, out[e, 10:145] = L (15x9, row-major) with
+    >= 10 columns, out[e, 1:10] = vec P, P = 2 c F A; if it has more (145), out[e, 10:145] = L (15x9, row-major) with
     L^T L = 2 c (J^T J + I (x) A_+) (`solvers.physics.viscosity.viscous_dpdf`, projected): rows 0-5 sqrt(2 c) times
     the rows of J = dvec E / dvec F for E's entries (0,0), (1,1), (2,2), (0,1), (0,2), (1,2) (the off-diagonal ones
     times sqrt 2: their twins (l, j) are the same row), rows 6 + 3 m + i sqrt(2 c max(lambda_m, 0)) (e_i (x) q_m)
@@ -86,7 +86,7 @@ def viscous_kernel(F: wp.array(dtype=wp.mat33d), F_bar: wp.array(dtype=wp.mat33d
         for i in range(3):
             for j in range(3):
                 out[e, 1 + 3 * i + j] = P[i, j]
-    if width >= 10 + 9 * 15:
+    if width > 10:
         s2c = wp.sqrt(f64(2.0) * c)
         for p in range(6):
             j = p
