@@ -67,9 +67,11 @@ def cmd_list(args: argparse.Namespace) -> int:
     from frictionbench.solvers.registry import solver_names, unavailable
 
     print("suites:")
-    for name in list_suites():
+    names = list_suites()
+    width = max(map(len, names), default=0)
+    for name in names:
         s = load_suite(name)
-        print(f"  {name:8s} {len(s.train):3d} train {len(s.test):3d} test  {s.description}")
+        print(f"  {name:{width}s} {len(s.train):3d} train {len(s.test):3d} test  {s.description}")
         if args.verbose:
             for m in s.scenarios:
                 print(f"      {m.split:5s} {m.scenario.name}")

@@ -134,6 +134,17 @@ def test_list_suites_names_the_shipped_files() -> None:
     assert list_suites() == ["hard", "paper", "paper-damped", "quick", "quick-damped", "verify"]
 
 
+def test_frictionbench_list_aligns_the_suites_counts(capsys) -> None:
+    """Every suite's member counts start in the same column, however long its name (paper-damped, quick-damped)."""
+    from frictionbench.bench.cli import main
+
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    rows = out[out.index("suites:") + 1:out.index("meshes:")]
+    assert len(rows) == len(list_suites())
+    assert len({row.index(" train") for row in rows}) == 1
+
+
 def test_paper_suite_is_the_papers_matrix_per_mesh() -> None:
     suite = load_suite("paper")
     for mesh in ("cheese", "sphere"):
