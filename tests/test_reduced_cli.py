@@ -84,7 +84,7 @@ def test_pod_refuses_another_mesh(trained, tmp_path):
 def test_pod_selects_an_optimised_cubature_on_its_training_mesh(trained, tmp_path):
     """`cubature = "optimized:N"` gives POD a cubature selected from its training states, stored once beside the
     basis and used by the solver (not the uniform fallback of a reduced model without one)."""
-    suite, out = trained
+    _, out = trained
     runs = sorted((out / "runs").glob("*/trajectory.npz"))
     params = Pod(r=14, affine=True, cubature="optimized:20").prepare("block", runs, tmp_path, "tinytrain")
     path = Path(params["cubature_file"])
