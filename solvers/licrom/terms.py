@@ -136,8 +136,10 @@ class _Elasticity(BodyEvaluation):
 
 @EVALUATIONS.register(Viscosity)
 class _Viscosity(BodyEvaluation):
-    def _evaluate(self, q: np.ndarray, st: ReducedStep, mode: int) -> Evaluation:
-        """The viscous kernel (`kernels.viscous_evaluate`) at F_c(q) against F_c(q_bar), c = eta / h_eff."""
+    def _evaluate(self, q: np.ndarray, st: ReducedStep, mode: int
+                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The viscous kernel (`kernels.viscous_evaluate`) at F_c(q) against F_c(q_bar), c = eta / h_eff: per tet the
+        density (c,) [J/m^3], P (c, 3, 3) [Pa] and the Hessian factor (c, 15, 9) [sqrt(Pa)] as `mode` asks."""
         rm = self.rs.reduced
         return K.viscous_evaluate(rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar),
                                   self.rs.model.viscosity / st.h_eff, mode, rm.device)
