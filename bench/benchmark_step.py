@@ -22,7 +22,8 @@ mid-contact state steps `--reduced-steps` steps after a warm-up step in each red
 `ReducedSolver._candidates`), the configurations interleaved step by step and each step the fastest of
 `--repeats` runs from the same state (a step is deterministic), so that a shared machine's load moves the ratio
 less. Parts, exclusive (a part's time leaves out the timed parts called inside it):
-elastic (the cubature tets, energy and Hessian), points (contact, damping and friction at the sample points),
+body (the body terms: the cubature tets' elasticity and viscosity, energy, stress and Hessian pulled back to
+the latent coordinates, and inertia and gravity), points (contact, damping and friction at the sample points),
 reduction (the rest of `ReducedSolver.evaluate`, the second-order evaluation that `candidates` runs in the line
 search too: the products with the basis), linear solve (r x r Cholesky), line search (the rest of the energy
 evaluations: `all-points` evaluates them to order 0), basis (the products with the whole basis W: the end state
@@ -56,7 +57,7 @@ CASES = ["paper/cheese_p1_mu0.5", "paper/sphere_p1_mu0.5", "hard/E1e9"]
 CONFIGS = ["superlu:1", "pardiso:1", "pardiso:2"]
 PARTS = ("assembly", "factorisation", "solve", "line_search")
 REDUCED = ["all-points", "candidates"]
-REDUCED_PARTS = ("elastic", "points", "reduction", "linear_solve", "line_search", "basis")
+REDUCED_PARTS = ("body", "points", "reduction", "linear_solve", "line_search", "basis")
 
 
 class _Clock:
@@ -168,7 +169,7 @@ class _ReducedRun:
         self.state = solver.project(state)
         solver.step(self.state, State(self.state.x, self.state.v, self.state.t), self.dt)  # warm-up (kernels)
         self.clock, self.counts = _Clock(), []
-        for obj, method, part in ((solver.reduced, "elastic", "elastic"), (solver, "_point_terms", "points"),
+        for obj, method, part in ((solver, "_body_terms", "body"), (solver, "_point_terms", "points"),
                                   (solver, "evaluate", "reduction"), (solver, "newton_solve", "linear_solve"),
                                   (solver, "energy", "line_search"), (solver, "_velocity_norm", "basis"),
                                   (solver, "decode", "basis")):
@@ -265,8 +266,8 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, red
                 records.append(rec)
                 print(f"{name:24s} {'reduced:' + mode:22s} {rec['step_ms']:7.3f} ms/step ({rec['speedup']:5.0f}x, "
                       f"{rec['speedup_vs_first_reduced']:4.2f}x)  it/step {np.mean(rec['newton_iters']):4.2f}  "
-                      f"candidates {rec['candidates_mean']:6.1f}/{rec['points']}  per step: elastic "
-                      f"{rec['elastic_ms']:5.3f}  points {rec['points_ms']:5.3f}  reduction {rec['reduction_ms']:5.3f}"
+                      f"candidates {rec['candidates_mean']:6.1f}/{rec['points']}  per step: body "
+                      f"{rec['body_ms']:5.3f}  points {rec['points_ms']:5.3f}  reduction {rec['reduction_ms']:5.3f}"
                       f"  solve {rec['linear_solve_ms']:5.3f}  line search {rec['line_search_ms']:5.3f}  basis "
                       f"{rec['basis_ms']:5.3f}  other {rec['other_ms']:5.3f} ms  |dx_end|/L "
                       f"{rec['x_end_diff_rel']:.1e}", flush=True)

@@ -98,11 +98,12 @@ def test_snh_kernel_matches_numpy_reference():
 def test_reduced_elastic_terms_match_full_space_assembly(block):
     model = build_model(Scenario(name="rest", mesh=MeshSpec("block", "coarse"), plane=None), block)
     W = smooth_basis(model.X, 20, 0.01 * model.L)
-    rm = ReducedModel.build(model, W)
+    rs = ReducedSolver(model, W)
+    elastic = next(ev for ev in rs.body_evaluations if isinstance(ev.term, pm.Elasticity))
     q = 0.5 * np.random.default_rng(0).standard_normal(20)
-    x = model.X + rm.decode(q)
+    x = model.X + rs.reduced.decode(q)
     args = (model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
-    E, g, H = rm.elastic(q, K.HESSIAN)
+    E, g, H = elastic.reduced(q, None, 2)
     assert E == pytest.approx(pm.elastic_energy(x, *args), rel=1e-12)
     Wf = W.reshape(-1, 20)
     g_ref = Wf.T @ pm.elastic_gradient(x, *args).ravel()
@@ -115,12 +116,13 @@ def test_reduced_elastic_terms_match_full_space_assembly(block):
     assert np.abs(H - H_ref).max() < 1e-8 * np.abs(H_ref).max()
 
 
-@pytest.mark.parametrize("rows", [9, 15])
+@pytest.mark.parametrize("rows", [(9,), (15,), (9, 15)])
 @pytest.mark.parametrize("dense", [True, False])
-def test_pull_back_of_a_hessian_factor_is_that_of_the_hessian(block, dense, rows):
+def test_pull_back_of_hessian_factors_is_that_of_their_hessians(block, dense, rows):
     """The kernels' density Hessians arrive as factors L (k x 9, H9 = L^T L: 9 rows for SNH, 15 for the viscous
-    term): the pull-back G^T G is sum_c w_c V_c B_c^T H9_c B_c, exactly symmetric, on the dense jacobians and on
-    the sparse ones (a full basis); the gradient is sum_c w_c V_c B_c^T vec P_c."""
+    term), one per term: the pull-back (G^T G for one factor, of the summed H9 for several) is
+    sum_c w_c V_c B_c^T (sum_t L_tc^T L_tc) B_c, exactly symmetric, on the dense jacobians and on the sparse ones
+    (a full basis); the gradient is sum_c w_c V_c B_c^T vec P_c."""
     model = build_model(Scenario(name="rest", mesh=MeshSpec("block", "coarse"), plane=None), block)
     W = smooth_basis(model.X, 20, 0.01 * model.L) if dense else full_basis(model.n)
     rng = np.random.default_rng(1)
@@ -128,17 +130,17 @@ def test_pull_back_of_a_hessian_factor_is_that_of_the_hessian(block, dense, rows
     w = rng.uniform(0.0, 3.0, 30)
     rm = ReducedModel.build(model, W, (ids, w))
     assert (rm.B_sparse is None) == dense
-    L = rng.standard_normal((30, rows, 9))
+    factors = [rng.standard_normal((30, k, 9)) for k in rows]
     P = rng.standard_normal((30, 3, 3))
-    g, H = rm.pull_back(P, L)
+    g, H = rm.pull_back(P, factors)
     B = rm.B  # (c, 9, r): dvec F_c / dq
     wV = w * model.vol[ids]
-    H_ref = sum(wV[c] * B[c].T @ L[c].T @ L[c] @ B[c] for c in range(30))
+    H_ref = sum(wV[c] * B[c].T @ L[c].T @ L[c] @ B[c] for c in range(30) for L in factors)
     g_ref = sum(wV[c] * B[c].T @ P[c].ravel() for c in range(30))
     assert np.array_equal(H, H.T)
     assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
     assert np.abs(g - g_ref).max() < 1e-12 * np.abs(g_ref).max()
-    assert rm.pull_back(None, None) == (None, None)
+    assert rm.pull_back(None, None) == rm.pull_back(None, []) == (None, None)
 
 
 def test_cubature_weights_and_ids_are_checked(block):

@@ -15,11 +15,12 @@ from frictionbench.scenarios.load import scenario_from_dict, scenario_hash, scen
 from frictionbench.scenarios.meshes import TetMesh, load_mesh, make_mesh
 from frictionbench.scenarios.meshgen import structured_box
 from frictionbench.scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import full_basis
+from frictionbench.solvers.baselines import affine_basis, full_basis
 from frictionbench.solvers import kernels as K
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.licrom import kernels as RK
 from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedState
+from frictionbench.solvers.licrom.terms import CubatureEvaluation
 from frictionbench.solvers.model import Model, build_model, initial_state, rotation_matrix
 from frictionbench.solvers.physics import material as pm
 from frictionbench.solvers.physics import terms as T
@@ -153,6 +154,30 @@ def test_reduced_evaluation_matches_the_full_space_reference(box):
     u = (x - model.X)[pts.vertices]
     sample = viscous.sample_gradient(q, st, u, u)
     assert np.abs(sample - ref_g[pts.vertices]).max() < 1e-11 * np.abs(ref_g).max()
+
+
+@pytest.mark.parametrize("basis", ["affine", "full"])
+def test_the_body_terms_summed_per_tet_are_the_terms_evaluated_alone(box, basis):
+    """The step sums the cubature terms' (elasticity's and viscosity's) stresses and Hessians per tet before one
+    pull-back: its energy, gradient and Hessian equal the sum of every body evaluation alone (dense jacobians and
+    sparse ones, a full basis). Its energy alone (order 0, the line search's with the
+    candidates off) is the same to round-off: the kernels' energy-only mode rounds differently."""
+    model = free_body(box, Material(viscosity=50.0), Initial(), 0.01, 0.01)
+    W = affine_basis(model.X) if basis == "affine" else full_basis(model.n)
+    rs = ReducedSolver(model, W)
+    assert (rs.reduced.B_sparse is None) == (basis == "affine")
+    assert sum(isinstance(ev, CubatureEvaluation) for ev in rs.body_evaluations) == 2
+    rng = np.random.default_rng(13)
+    q_bar, q = (rs.reduced.project(_perturbed(model, k, 0.01) - model.X) for k in (14, 15))
+    st = rs._begin(ReducedState(q_bar, rng.standard_normal(q_bar.size)), 0.01)
+    E, g, H = rs._body_terms(q, st, 2)
+    alone = [ev.reduced(q, st, 2) for ev in rs.body_evaluations]
+    g_ref = sum(a[1] for a in alone)
+    H_ref = sum(a[2] for a in alone if a[2] is not None)
+    assert E == sum(a[0] for a in alone)
+    assert rs._body_terms(q, st, 0)[0] == pytest.approx(E, rel=1e-14)
+    assert np.abs(g - g_ref).max() < 1e-12 * np.abs(g_ref).max()
+    assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
 
 
 def test_reduced_viscous_kernel_matches_numpy_reference():

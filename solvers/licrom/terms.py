@@ -2,7 +2,9 @@
 elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
 per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). A body term without an entry is
 evaluated from its numpy reference (`ReferenceEvaluation`, the table's default): exact, but a full-mesh evaluation
-per call; a dedicated evaluation makes it fast.
+per call; a dedicated evaluation makes it fast. A body term that is a density over the body (elasticity,
+viscosity) is a `CubatureEvaluation`: a kernel gives its per-tet values at the cubature tets, and the solver sums
+those of every such term before one reduction to the latent coordinates.
 
 The point terms (`solvers.physics.terms.PointTerm`: contact, damping, friction) are evaluated at the contact sample
 points the solver picks (`PointEvaluations`): each by its `PointLaunch` in the table `POINT_LAUNCHES`, the built-in
@@ -121,38 +123,60 @@ class _Gravity(BodyEvaluation):
         return self.rs.samples.weight[:, None] * -self.rs.model.gravity
 
 
-@EVALUATIONS.register(Elasticity)
-class _Elasticity(BodyEvaluation):
+TetValues = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
+"""A term at the cubature tets: its density (c,) [J/m^3], first Piola-Kirchhoff stress P (c, 3, 3) [Pa] (None
+below `kernels.STRESS`) and density Hessian factor L (c, k, 9) [sqrt(Pa)], H9_c = L_c^T L_c (None below
+`kernels.HESSIAN`)."""
+
+MODES = (K.ENERGY, K.STRESS, K.HESSIAN)
+"""The kernels' evaluation mode of each derivative order 0, 1, 2."""
+
+
+class CubatureEvaluation(BodyEvaluation):
+    """A body term given per cubature tet by a kernel of `solvers.licrom.kernels` at the tets' deformation
+    gradients F_c(q) (`at_tets`). The solver sums the per-tet values of every such term of its scene at one F_c(q)
+    and pulls the sums back to the latent coordinates once (`ReducedSolver.evaluate`, `ReducedModel.pull_back`);
+    `reduced` is the term alone."""
+
+    @abstractmethod
+    def at_tets(self, F: np.ndarray, st: ReducedStep, mode: int) -> TetValues:
+        """The term at the cubature tets' deformation gradients F (c, 3, 3), to `mode` (`kernels.ENERGY`, `STRESS`
+        or `HESSIAN`), with the reduced step's constants st."""
+
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """The cubature elastic energy with its gradient and PSD-projected Hessian (`ReducedModel.elastic`)."""
-        return self.rs.reduced.elastic(q, (K.ENERGY, K.STRESS, K.HESSIAN)[order])
+        """The cubature sum of this term alone: energy sum_c w_c V_c density_c, gradient and Hessian pulled back
+        (`ReducedModel.pull_back`)."""
+        rm = self.rs.reduced
+        density, P, L = self.at_tets(rm.deformation_gradients(q), st, MODES[order])
+        return (float(rm.wV @ density),) + rm.pull_back(P, None if L is None else [L])
 
     def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
-        """The cubature tets' elastic forces w_c V_c P_c g_a on their vertices."""
-        m, rm = self.rs.model, self.rs.reduced
-        _, P, _ = K.snh_evaluate(rm.deformation_gradients(q), m.mu_snh, m.lam_snh, K.STRESS, rm.device)
-        return self.rs.samples.forces(rm.wV, P)
+        """The cubature tets' forces w_c V_c P_c g_a on their vertices."""
+        rm = self.rs.reduced
+        return self.rs.samples.forces(rm.wV, self.at_tets(rm.deformation_gradients(q), st, K.STRESS)[1])
+
+
+@EVALUATIONS.register(Elasticity)
+class _Elasticity(CubatureEvaluation):
+    def at_tets(self, F: np.ndarray, st: ReducedStep, mode: int) -> TetValues:
+        """Stable Neo-Hookean: Psi, P and the factor of (dP/dF)_+ (`kernels.snh_evaluate`, one launch)."""
+        m = self.rs.model
+        return K.snh_evaluate(F, m.mu_snh, m.lam_snh, mode, self.rs.reduced.device)
 
 
 @EVALUATIONS.register(Viscosity)
-class _Viscosity(BodyEvaluation):
-    def _evaluate(self, q: np.ndarray, st: ReducedStep, mode: int
-                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """The viscous kernel (`kernels.viscous_evaluate`) at F_c(q) against F_c(q_bar), c = eta / h_eff: per tet the
-        density (c,) [J/m^3], P (c, 3, 3) [Pa] and the Hessian factor (c, 15, 9) [sqrt(Pa)] as `mode` asks."""
-        rm = self.rs.reduced
-        return K.viscous_evaluate(rm.deformation_gradients(q), rm.deformation_gradients(st.q_bar),
-                                  self.rs.model.viscosity / st.h_eff, mode, rm.device)
+class _Viscosity(CubatureEvaluation):
+    def __init__(self, rs: ReducedSolver, term: Term) -> None:
+        super().__init__(rs, term)
+        self._bar: tuple[ReducedStep | None, np.ndarray | None] = (None, None)  # a step and its F_c(q_bar)
 
-    def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """The cubature sum: energy, gradient B^T (w V P) and Hessian B^T (w V H9) B from its factor (one launch)."""
+    def at_tets(self, F: np.ndarray, st: ReducedStep, mode: int) -> TetValues:
+        """Kelvin-Voigt at F against F_c(q_bar) (computed once a step), c = eta / h_eff: the density, P and the
+        15-row factor of its projected Hessian (`kernels.viscous_evaluate`, one launch)."""
         rm = self.rs.reduced
-        density, P, L = self._evaluate(q, st, (K.ENERGY, K.STRESS, K.HESSIAN)[order])
-        return (float(rm.wV @ density),) + rm.pull_back(P, L)
-
-    def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
-        """The cubature tets' viscous forces w_c V_c P_c g_a on their vertices."""
-        return self.rs.samples.forces(self.rs.reduced.wV, self._evaluate(q, st, K.STRESS)[1])
+        if self._bar[0] is not st:
+            self._bar = st, rm.deformation_gradients(st.q_bar)
+        return K.viscous_evaluate(F, self._bar[1], self.rs.model.viscosity / st.h_eff, mode, rm.device)
 
 
 # ----- the point terms ---------------------------------------------------------------------------------------------
