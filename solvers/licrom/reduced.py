@@ -207,23 +207,26 @@ class ReducedModel:
         g = None if P is None else Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
         if not factors:
             return g, None
-        c = self.cub_ids.size
         if len(factors) == 1:
             Ls = np.sqrt(self.wV)[:, None, None] * factors[0]
             if self.B_sparse is None:
                 G = np.matmul(Ls, self.B).reshape(-1, self.r)
                 return g, G.T @ G
-            k = Ls.shape[1]
-            G = sp.bsr_matrix((Ls, np.arange(c), np.arange(c + 1)), shape=(k * c, 9 * c)) @ self.B_sparse
+            G = _block_diagonal(Ls) @ self.B_sparse
             return g, (G.T @ G).toarray()
         L = np.concatenate(factors, axis=1)
         wH = np.matmul(L.transpose(0, 2, 1), self.wV[:, None, None] * L)  # (c, 9, 9): w_c V_c H9_c
         if self.B_sparse is None:
             H = Bf.T @ np.matmul(wH, self.B).reshape(-1, self.r)
         else:
-            H = (self.B_sparse.T @ (sp.bsr_matrix((wH, np.arange(c), np.arange(c + 1)), shape=(9 * c, 9 * c))
-                                    @ self.B_sparse)).toarray()
+            H = (self.B_sparse.T @ (_block_diagonal(wH) @ self.B_sparse)).toarray()
         return g, 0.5 * (H + H.T)
+
+
+def _block_diagonal(blocks: np.ndarray) -> sp.bsr_matrix:
+    """The sparse block-diagonal matrix (c k, c l) of per-tet blocks (c, k, l)."""
+    c, k, l = blocks.shape
+    return sp.bsr_matrix((blocks, np.arange(c), np.arange(c + 1)), shape=(c * k, c * l))
 
 
 def _positions(Xp: np.ndarray, Wp: np.ndarray, q: np.ndarray) -> np.ndarray:
