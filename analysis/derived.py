@@ -13,14 +13,15 @@ from frictionbench.analysis.table import variant_labels
 
 def with_remesh_ratio(rows: list[dict]) -> list[dict]:
     """Rows with `remesh_ratio` on each row of a model run on another mesh than its training mesh: its
-    pos_rmse_rel / that of the same model on the same scenario on the training mesh (1 = remeshing costs nothing;
-    empty where either run failed)."""
+    pos_rmse_rel / that of its twin on the same scenario on the training mesh, the variant its `remesh_of` names
+    (else its `model`) (1 = remeshing costs nothing; empty where either run failed)."""
     on_train = {(r["scenario"], r["solver"], r["variant"]): r.get("pos_rmse_rel") for r in rows
                 if not r.get("remesh") and r.get("status") == "ok"}
     out = []
     for r in rows:
         if r.get("remesh") and r.get("train_mesh"):
-            base, err = on_train.get((r["scenario"], r["solver"], r.get("model"))), r.get("pos_rmse_rel")
+            twin = r.get("remesh_of") or r.get("model")
+            base, err = on_train.get((r["scenario"], r["solver"], twin)), r.get("pos_rmse_rel")
             ratio = err / base if base and err is not None and r.get("status") == "ok" else None
             r = r | {"remesh_ratio": ratio}
         out.append(r)

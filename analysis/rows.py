@@ -223,6 +223,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                 v_ref, v_ref_stats = runs.load(runs.key(sc, ref_task.solver, mesh))
             row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
                           "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
+                          "remesh_of": (v.remesh_of or v.model or label) if v.remesh else "",
                           "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
                           "train_mesh": sc.mesh.key if "shape" in params else "",
                           "train_data": getattr(v, "training", "reference") if "shape" in params else "",

@@ -338,6 +338,9 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("r", "parameter", unit="count", meaning="a reduced variant's subspace dimension", source=_ROWS,
            placed=False),
     Column("model", "parameter", unit="text", meaning="the trained model a variant uses", source=_ROWS, placed=False),
+    Column("remesh_of", "parameter", unit="text",
+           meaning="the variant on the training mesh a remeshed variant is compared with (remesh_ratio)",
+           source=_ROWS, placed=False),
     Column("train_data", "parameter", unit="text",
            meaning="what a reduced model trained on: `reference` (the training members' runs at the scene's step) "
                    "or `truth` (their truths); '' without one", source=_ROWS, placed=False),

@@ -48,7 +48,8 @@ class Variant:
     resolution of the same shape (remeshing; compared with the full-space run on that mesh, or, with `transfer`,
     carried onto the reference mesh and compared with the reference itself: accuracy across resolutions).
     `model` names the trained model a variant shares with another (a remeshed variant with its training-mesh
-    variant, a level of a step ladder with its base; default: the label); `overrides` and `dt_scale` change the
+    variant, a level of a step ladder with its base; default: the label); `remesh_of` the variant on the training
+    mesh a remeshed one is compared with (`remesh_ratio`; default: its model); `overrides` and `dt_scale` change the
     scenario (e.g. a larger time step), `frame_scale` multiplies its frame_every (a finer step storing its frames at
     the scene's frame times). `curve` names the accuracy-for-time curve the variant is a point of, `curve_level` its
     level k on it (dt / 2^k) and `curve_twin` the curve of the same variant with every tet (cubature "all"), where
@@ -62,6 +63,7 @@ class Variant:
     label: str = ""
     remesh: str | None = None
     model: str = ""
+    remesh_of: str = ""
     overrides: dict = field(default_factory=dict)
     dt_scale: float = 1.0
     transfer: bool = False

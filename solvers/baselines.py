@@ -2,7 +2,9 @@
 
 - `affine_fields` / `affine_basis`: the 12 exact affine fields (every rigid motion and every homogeneous strain),
   mesh-free; `affine_fields` is also the affine part of LiCROM's neural field (torch);
-- `pod_basis`: proper orthogonal decomposition of training displacements, bound to the training mesh;
+- `pod_basis`: proper orthogonal decomposition of training displacements, computed on the training mesh;
+- `interpolate_basis`: a basis of one mesh carried to another mesh of the same shape (piecewise linear on the
+  first mesh's tets, `barycentric_weights`);
 - `full_basis`: the complete per-vertex basis (the reduced solver then equals the full-space one);
 - `project`: the coordinates of displacements in a basis (mass-weighted least squares).
 """
@@ -12,6 +14,7 @@ from __future__ import annotations
 from typing import TypeVar
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 ArrayT = TypeVar("ArrayT")  # a numpy array or a torch tensor
 
@@ -113,3 +116,46 @@ def _pod_modes(trajectories_u: np.ndarray, r: int, mass: np.ndarray) -> np.ndarr
     s = np.sqrt(np.repeat(mass, 3))
     Phi, _, _ = np.linalg.svd(s[:, None] * trajectories_u.reshape(F, -1).T, full_matrices=False)
     return (Phi[:, :r] / s[:, None]).reshape(n, 3, r)
+
+
+def barycentric_weights(X_src: np.ndarray, tets: np.ndarray, points: np.ndarray, candidates: int = 16
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """For each point (p, 3) [m], the source tet (p,) of the mesh (X_src (n, 3) [m], tets (m, 4)) holding it (or
+    the best of its `candidates` nearest tets by centroid) and its barycentric weights (p, 4), clamped to be
+    non-negative and renormalised: a point outside the mesh takes the closest point of that tet."""
+    centroids = X_src[tets].mean(axis=1)
+    k = min(candidates, len(tets))
+    _, near = cKDTree(centroids).query(points, k=k)
+    near = near.reshape(len(points), k)
+    T = X_src[tets[near]]  # (p, k, 4, 3)
+    D = np.stack([T[:, :, j] - T[:, :, 0] for j in (1, 2, 3)], axis=-1)  # (p, k, 3, 3)
+    lam123 = np.linalg.solve(D, (points[:, None, :] - T[:, :, 0])[..., None])[..., 0]
+    lam = np.concatenate([1.0 - lam123.sum(-1, keepdims=True), lam123], axis=-1)  # (p, k, 4)
+    outside = np.maximum(-lam, 0.0).sum(-1)  # 0 inside the tet
+    best = outside.argmin(axis=1)
+    rows = np.arange(len(points))
+    w = np.maximum(lam[rows, best], 0.0)
+    return near[rows, best], w / w.sum(axis=1, keepdims=True)
+
+
+#: The farthest a vertex of the target mesh may lie outside the source mesh when a basis is carried across, as a
+#: fraction of the source mesh's bounding-box diagonal: two discretisations of one curved boundary differ by a
+#: fraction of an edge; farther out the target is another shape.
+OUTSIDE_TOLERANCE = 0.02
+
+
+def interpolate_basis(W: np.ndarray, X_src: np.ndarray, tets: np.ndarray, X_dst: np.ndarray) -> np.ndarray:
+    """A basis W (n, 3, r) of the mesh (X_src (n, 3) [m], tets (m, 4)), piecewise linear on its rest tets,
+    evaluated at the rest vertices X_dst (p, 3) [m] of another mesh of the same shape: (p, 3, r). A vertex outside
+    the source mesh takes the value at the closest point of its nearest tet; one farther out than
+    OUTSIDE_TOLERANCE of the source's bounding-box diagonal is an error naming it (another shape)."""
+    tet, w = barycentric_weights(X_src, tets, X_dst)
+    idx = tets[tet]  # (p, 4)
+    gap = np.linalg.norm(np.einsum("pk,pkd->pd", w, X_src[idx]) - X_dst, axis=1)
+    size = float(np.linalg.norm(X_src.max(axis=0) - X_src.min(axis=0)))
+    far = int(np.argmax(gap))
+    if gap[far] > OUTSIDE_TOLERANCE * size:
+        raise ValueError(f"vertex {far} of the target mesh (at {X_dst[far].round(4).tolist()} m) lies {gap[far]:.3g} m "
+                         f"outside the source mesh ({gap[far] / size:.1%} of its size, more than "
+                         f"{OUTSIDE_TOLERANCE:.0%}): not a mesh of the same shape")
+    return np.einsum("pk,pkdr->pdr", w, W[idx])

@@ -25,6 +25,15 @@ def test_remeshing_summary_gives_each_mesh_its_median_error_and_the_median_of_th
     assert list(table["runs"]) == [2, 2] and set(table["model"]) == {"licrom/m"}
 
 
+def test_a_remeshed_row_is_compared_with_the_twin_its_remesh_of_names() -> None:
+    """Two levels of one model on the training mesh: the remeshed dt/2 level is compared with the dt/2 level (its
+    remesh_of), not with the model's base variant."""
+    base, half = row("a", "cheese/medium", 0.04), row("a", "cheese/medium", 0.01) | {"variant": "m-dt/2"}
+    other = row("a", "cheese/alt", 0.03, "alt") | {"variant": "m-dt/2-re", "remesh_of": "m-dt/2"}
+    assert with_remesh_ratio([base, half, other])[2]["remesh_ratio"] == pytest.approx(3.0)  # not 0.03 / 0.04
+    assert with_remesh_ratio([base, half, other | {"remesh_of": ""}])[2]["remesh_ratio"] == pytest.approx(0.75)
+
+
 def test_remeshing_summary_is_empty_without_a_run_on_another_mesh() -> None:
     assert remeshing_summary(pd.DataFrame([row("a", "cheese/medium", 0.01)])).empty
     assert remeshing_summary(pd.DataFrame([{"scenario": "a", "pos_rmse_rel": 0.1}])).empty

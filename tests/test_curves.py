@@ -92,7 +92,21 @@ def test_the_pod_cubature_set_draws_curves_under_both_lags():
         assert (level.contact.lag == "fixed-point") == ("-fixed-point-" in v.label)
     assert lags.count("start") == lags.count("fixed-point") == 12 and len({v.curve for v in pod}) == 8
     assert all("pod-cubature" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
-    assert all("pod-cubature" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
+
+
+def test_the_pod_remesh_set_runs_pod_cubature_points_beside_their_twins_on_the_other_mesh():
+    points = {v.label: v for v in variant_set("pod-cubature")}
+    remesh = variant_set("pod-remesh")
+    own, other = [v for v in remesh if not v.remesh], [v for v in remesh if v.remesh]
+    assert len(own) == len(other) == 12 and all(points[v.label] == v for v in own)  # the same runs: stored ones reused
+    for v in other:
+        twin = points[v.remesh_of]
+        assert v.remesh == "alt" and v.label == f"{twin.label}-remesh" and v.model == twin.model
+        assert (v.params, v.overrides, v.dt_scale, v.frame_scale, v.training) == (
+            twin.params, twin.overrides, twin.dt_scale, twin.frame_scale, twin.training)
+        assert not v.curve and v.curve_level is None
+    assert {v.remesh_of for v in other} == {v.label for v in own}
+    assert all("pod-remesh" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
 def test_every_level_of_a_licrom_ladder_trains_nothing_of_its_own(tmp_path: Path, licrom_trainings):

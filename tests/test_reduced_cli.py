@@ -1,5 +1,6 @@
 """Reduced solvers end to end: `frictionbench train`, simulate with a checkpoint on the training mesh and on
-another mesh of the shape, and the clear errors (corrupt checkpoint, wrong r, POD on another mesh)."""
+another mesh of the shape, POD carried to another mesh, and the clear errors (corrupt checkpoint, wrong r,
+POD on a mesh of another shape)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from frictionbench.scenarios.meshes import load_mesh
 from frictionbench.scenarios.model import MeshSpec
 from frictionbench.solvers.licrom.plugins import Licrom, Pod
 from frictionbench.solvers.licrom.train import CheckpointError
-from frictionbench.solvers.model import build_model
+from frictionbench.solvers.model import build_model, initial_state
+from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
@@ -65,20 +67,58 @@ def test_corrupt_checkpoint_and_wrong_r_fail_clearly(trained, tmp_path, capsys):
         Licrom(checkpoint=str(out / "model.pt"), r=20).setup(model)
 
 
-def test_pod_refuses_another_mesh(trained, tmp_path):
-    suite, out = trained
+def test_pod_carries_its_modes_to_another_mesh_of_the_shape(trained, tmp_path):
+    """POD's modes, piecewise linear on the training mesh, are interpolated at another mesh's vertices: the affine
+    columns stay affine there, the run falls under gravity as on the training mesh, and a mesh of another shape is
+    skipped with the reason."""
+    _, out = trained
     runs = sorted((out / "runs").glob("*/trajectory.npz"))
-    params = Pod(r=6).prepare("block", runs, tmp_path, "tinytrain")
+    params = Pod(r=14, affine=True).prepare("block", runs, tmp_path, "tinytrain")
     assert params["shape"] == "block" and Path(params["basis"]).is_relative_to(tmp_path)
     sc = resolve_scenario("verify/block_fall")
-    other = build_model(sc, load_mesh(MeshSpec("block", "coarse_alt")))
-    pod = Pod(r=6, **params)
-    assert "training mesh" in pod.skip(other)
     same = build_model(sc, load_mesh(MeshSpec("block", "coarse")))
-    assert pod.skip(same) is None
-    pod.setup(same)
-    assert pod.solver.reduced.r == 6 and pod.basis.shape == (same.n, 3, 6)
-    assert np.isfinite(np.load(params["basis"])["W"]).all()
+    other = build_model(sc, load_mesh(MeshSpec("block", "coarse_alt")))
+    stored = np.load(params["basis"])
+    assert set(stored.files) == {"W", "X", "tets"} and np.isfinite(stored["W"]).all()
+    pods = {}
+    for name, model in (("same", same), ("other", other)):
+        pod = Pod(r=14, affine=True, **params)
+        assert pod.skip(model) is None
+        pod.setup(model)
+        assert pod.basis.shape == (model.n, 3, 14)
+        pods[name] = pod
+    assert "basis_mesh" not in pods["same"].describe()
+    assert "interpolated" in pods["other"].describe()["basis_mesh"]
+    # the affine columns (the first 12, fields of the training mesh's standardised positions) are linear in X: their
+    # interpolation at the other mesh's vertices inside the training mesh is exact
+    W_same, W_other = pods["same"].basis[:, :, :12], pods["other"].basis[:, :, :12]
+    fit = np.linalg.lstsq(np.c_[same.X, np.ones(same.n)], W_same.reshape(same.n, -1), rcond=None)[0]
+    assert np.allclose(np.c_[other.X, np.ones(other.n)] @ fit, W_other.reshape(other.n, -1), atol=1e-9)
+    drop = {}
+    for name, model in (("same", same), ("other", other)):
+        traj, _ = simulate(model, pods[name], pods[name].initial(initial_state(model)))
+        drop[name] = traj.x[-1, :, 1].mean() - traj.x[0, :, 1].mean()
+    assert drop["same"] < 0 and drop["same"] == pytest.approx(drop["other"], rel=1e-3)
+    sphere = build_model(sc, load_mesh(MeshSpec("sphere", "coarse")))
+    reason = Pod(r=14, affine=True, **params).skip(sphere)
+    assert "vertex" in reason and "not a mesh of the same shape" in reason
+
+
+def test_pod_stored_without_tets_gets_them_and_is_otherwise_refused_elsewhere(trained, tmp_path):
+    """A basis file stored before the training mesh's tets were kept: on another mesh the run is skipped saying why;
+    preparing again adds the tets and leaves the modes bitwise as they were."""
+    _, out = trained
+    runs = sorted((out / "runs").glob("*/trajectory.npz"))
+    params = Pod(r=6).prepare("block", runs, tmp_path, "tinytrain")
+    with np.load(params["basis"]) as z:
+        W, X = z["W"], z["X"]
+    np.savez_compressed(params["basis"], W=W, X=X)  # as stored before
+    other = build_model(resolve_scenario("verify/block_fall"), load_mesh(MeshSpec("block", "coarse_alt")))
+    assert "without its training mesh's tets" in Pod(r=6, **params).skip(other)
+    assert Pod(r=6).prepare("block", runs, tmp_path, "tinytrain") == params
+    with np.load(params["basis"]) as z:
+        assert np.array_equal(z["W"], W) and np.array_equal(z["tets"], Trajectory.load(runs[0]).tets)
+    assert Pod(r=6, **params).skip(other) is None
 
 
 def test_pod_selects_an_optimised_cubature_on_its_training_mesh(trained, tmp_path):

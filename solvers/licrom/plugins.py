@@ -1,5 +1,6 @@
 """Solvers of the reduced family under the solver contract (`solvers.contract`): `licrom` (trained neural field),
-`pod` (mesh-bound SVD modes), `affine` (the 12 affine fields).
+`pod` (SVD modes of the training mesh, carried to another mesh of the shape by interpolation), `affine` (the 12
+affine fields).
 
 Each `setup(model)` builds a `ReducedSolver` (untimed); where a solver needs the suite's training data, its
 `prepare(shape, trajectories, out_dir, suite)` trains once per (mesh shape, settings), caches the artefact under
@@ -20,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from frictionbench.scenarios.atomic import write_json_atomic
-from frictionbench.solvers.baselines import affine_basis, pod_basis, project
+from frictionbench.scenarios.atomic import atomic_open, write_json_atomic
+from frictionbench.solvers.baselines import affine_basis, interpolate_basis, pod_basis, project
 from frictionbench.solvers.contract import Solver, check_count
 from frictionbench.solvers.integrators import INTEGRATORS
 from frictionbench.solvers.licrom.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
@@ -127,9 +128,11 @@ class Affine(_Reduced):
 
 # ----- POD ---------------------------------------------------------------------------------------------------
 class Pod(_Reduced):
-    """POD modes of the training displacements (`r` of them, plus the affine fields with `affine`); bound to the
-    training mesh. With `cubature = "optimized:N"` the cubature is selected on the training mesh from the training
-    states in the basis (`cubature_file`, set by `prepare`), as LiCROM's is."""
+    """POD modes of the training displacements (`r` of them, plus the affine fields with `affine`) on the training
+    mesh. With `cubature = "optimized:N"` the cubature is selected on the training mesh from the training states in
+    the basis (`cubature_file`, set by `prepare`), as LiCROM's is. On another mesh of the same shape the modes,
+    piecewise linear on the training mesh's tets, are interpolated at its rest vertices (`interpolate_basis`), and an
+    optimised cubature falls back to uniform:N as LiCROM's does."""
 
     name = "pod"
     parameters = _COMMON | {"r": 20, "affine": False, "basis": "", "shape": "", "cubature_file": ""}
@@ -144,46 +147,75 @@ class Pod(_Reduced):
         return out | ({"cubature_file": cubature} if cubature else {})
 
     def skip(self, model: Model) -> str | None:
-        """POD cannot remesh: any mesh but its training mesh."""
-        X = _load_pod(self.params["basis"])[1]
-        if X.shape != model.X.shape or not np.allclose(X, model.X):
-            return (f"pod basis {self.params['basis']}: bound to its training mesh ({len(X)} vertices); this mesh "
-                    f"has {model.n} vertices. POD cannot remesh: use licrom or affine")
+        """A basis stored without its training mesh's tets cannot be carried to another mesh; a mesh of another
+        shape is refused by the interpolation."""
+        W, X, tets = _load_pod(self.params["basis"])
+        if _same_mesh(X, model.X):
+            return None
+        if tets is None:
+            return (f"pod basis {self.params['basis']}: stored without its training mesh's tets, so it cannot be "
+                    f"carried to this mesh ({model.n} vertices, the training mesh {len(X)}); run the matrix again to "
+                    f"store them")
+        try:
+            interpolate_basis(W[:, :, :1], X, tets, model.X)
+        except ValueError as err:
+            return f"pod basis {self.params['basis']}: {err}"
         return None
 
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
-        """The stored modes, their optimised cubature (if any) and their training time."""
+        """The stored modes (interpolated on another mesh), their optimised cubature (if any) and the training time;
+        `basis_mesh` says which."""
         path = self.params["basis"]
-        return (_load_pod(path)[0], _stored_cubature(self.params["cubature_file"]),
-                {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]})
+        W, X, tets = _load_pod(path)
+        info = {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]}
+        if not _same_mesh(X, model.X):
+            W = interpolate_basis(W, X, tets, model.X)
+            info["basis_mesh"] = f"interpolated from the training mesh ({len(X)} vertices)"
+        return W, _stored_cubature(self.params["cubature_file"]), info
 
 
-def _load_pod(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """A stored POD basis W (n, 3, r) and its training mesh's rest positions X (n, 3) [m] (arrays, no pickle)."""
+def _same_mesh(X: np.ndarray, X_run: np.ndarray) -> bool:
+    """Whether rest positions X_run (n, 3) [m] are those of the mesh X (the training mesh itself)."""
+    return X.shape == X_run.shape and np.allclose(X, X_run)
+
+
+def _load_pod(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """A stored POD basis W (n, 3, r), its training mesh's rest positions X (n, 3) [m] and tets (m, 4) (None in a
+    file stored before they were kept); arrays, no pickle."""
     with np.load(path, allow_pickle=False) as z:
-        return z["W"], z["X"]
+        return z["W"], z["X"], z["tets"] if "tets" in z.files else None
 
 
 def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_dir: Path, suite: str) -> str:
-    """The POD basis file of one shape (computed once, cached under models_dir)."""
+    """The POD basis file of one shape (computed once, cached under models_dir; a file stored without the training
+    mesh's tets gets them, the modes unchanged)."""
     r, with_affine = int(params.get("r", 20)), bool(params.get("affine", False))
     key = _key("pod", {"shape": shape, "r": r, "affine": with_affine, "data": [str(p) for p in trajectories]})
     path = Path(models_dir) / key / "basis.npz"
-    if not path.is_file():
-        trajs = [Trajectory.load(p) for p in trajectories]
-        X, tets = trajs[0].X, trajs[0].tets
-        from frictionbench.solvers.physics.inertia import lumped_mass
-        from frictionbench.solvers.physics.material import shape_matrices
+    if path.is_file():
+        W, X, tets = _load_pod(str(path))
+        if tets is None:
+            _save_pod(path, W, X, Trajectory.load(trajectories[0]).tets)
+        return str(path)
+    trajs = [Trajectory.load(p) for p in trajectories]
+    X, tets = trajs[0].X, trajs[0].tets
+    from frictionbench.solvers.physics.inertia import lumped_mass
+    from frictionbench.solvers.physics.material import shape_matrices
 
-        mass = lumped_mass(shape_matrices(X, tets)[1], tets, len(X), 1.0)
-        u = np.concatenate([t.x - t.X for t in trajs])
-        t0 = time.perf_counter()
-        W = pod_basis(u, r, mass, affine_X=X if with_affine else None)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, W=W, X=X)
-        write_json_atomic(path.parent / "info.json", {"train_s": time.perf_counter() - t0, "shape": shape,
-                                                      "suite": suite, "r": r, "affine": with_affine})
+    mass = lumped_mass(shape_matrices(X, tets)[1], tets, len(X), 1.0)
+    u = np.concatenate([t.x - t.X for t in trajs])
+    t0 = time.perf_counter()
+    W = pod_basis(u, r, mass, affine_X=X if with_affine else None)
+    _save_pod(path, W, X, tets)
+    write_json_atomic(path.parent / "info.json", {"train_s": time.perf_counter() - t0, "shape": shape,
+                                                  "suite": suite, "r": r, "affine": with_affine})
     return str(path)
+
+
+def _save_pod(path: Path, W: np.ndarray, X: np.ndarray, tets: np.ndarray) -> None:
+    """Store a POD basis W (n, 3, r) with its training mesh (X (n, 3) [m], tets (m, 4)), atomically."""
+    with atomic_open(path, "wb") as f:
+        np.savez_compressed(f, W=W, X=X, tets=tets)
 
 
 # ----- LiCROM ------------------------------------------------------------------------------------------------
