@@ -227,7 +227,7 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "pod-cubature": lambda: [level for v in POD_CUBATURE for lagged in (v, at_fixed_point(v))
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
-    # cubature uniform: the optimised one belongs to the training mesh): BDF2 at dt and dt/2 with the start lag and at
+    # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start lag and at
     # dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's other-mesh
     # target: at most 1.5x the own-mesh error; on demand)
     "pod-remesh": lambda: [v for level in _pod_remesh_points() for v in (level, on_other_mesh(level))],

@@ -99,6 +99,19 @@ def test_pod_carries_its_modes_to_another_mesh_of_the_shape(trained, tmp_path):
         traj, _ = simulate(model, pods[name], pods[name].initial(initial_state(model)))
         drop[name] = traj.x[-1, :, 1].mean() - traj.x[0, :, 1].mean()
     assert drop["same"] < 0 and drop["same"] == pytest.approx(drop["other"], rel=1e-3)
+    # an optimised cubature is selected again on the other mesh from the stored latent training states, once
+    params = Pod(r=14, affine=True, cubature="optimized:20").prepare("block", runs, tmp_path, "tinytrain")
+    folder = Path(params["cubature_file"]).parent
+    assert np.load(folder / "training_states.npy", allow_pickle=False).shape[1] == 14
+    infos = []
+    for _ in range(2):
+        pod = Pod(r=14, affine=True, cubature="optimized:20", **params)
+        pod.setup(other)
+        infos.append(pod.describe())
+    assert len(list(folder.glob("cubature_optimized_20_mesh-*.json"))) == 1
+    assert infos[0] == infos[1] and infos[0]["cubature_used"] == "optimized:20"
+    assert infos[0]["cubature_mesh"] == "selected on this mesh from the training states"
+    assert 1 <= infos[0]["cubature_count"] <= 20 and pod.solver.reduced.cub_ids.max() < len(other.tets)
     sphere = build_model(sc, load_mesh(MeshSpec("sphere", "coarse")))
     reason = Pod(r=14, affine=True, **params).skip(sphere)
     assert "vertex" in reason and "not a mesh of the same shape" in reason

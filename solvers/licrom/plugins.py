@@ -6,8 +6,8 @@ Each `setup(model)` builds a `ReducedSolver` (untimed); where a solver needs the
 `prepare(shape, trajectories, out_dir, suite)` trains once per (mesh shape, settings), caches the artefact under
 `out_dir/<key>/` (the run's output folder), and returns the run parameters `shape` and the artefact's path.
 Cubature parameter: `all` (every tet, weight 1), `uniform:N` or `optimized:N` (An, Kim & James on the training
-states; on a mesh other than the training mesh it falls back to uniform:N, as LiCROM does for remeshing, and the
-run's stats say so).
+states; on a mesh other than the training mesh LiCROM's falls back to uniform:N, as LiCROM does for remeshing, and
+the run's stats say so, while POD's is selected again on that mesh from the same latent training states).
 """
 
 from __future__ import annotations
@@ -132,7 +132,8 @@ class Pod(_Reduced):
     mesh. With `cubature = "optimized:N"` the cubature is selected on the training mesh from the training states in
     the basis (`cubature_file`, set by `prepare`), as LiCROM's is. On another mesh of the same shape the modes,
     piecewise linear on the training mesh's tets, are interpolated at its rest vertices (`interpolate_basis`), and an
-    optimised cubature falls back to uniform:N as LiCROM's does."""
+    optimised cubature is selected on that mesh from the stored latent training states, which mean the same there
+    (`_cubature_on_mesh`; LiCROM's falls back to uniform:N, as released)."""
 
     name = "pod"
     parameters = _COMMON | {"r": 20, "affine": False, "basis": "", "shape": "", "cubature_file": ""}
@@ -168,10 +169,15 @@ class Pod(_Reduced):
         path = self.params["basis"]
         W, X, tets = _load_pod(path)
         info = {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]}
-        if not _same_mesh(X, model.X):
-            W = interpolate_basis(W, X, tets, model.X)
-            info["basis_mesh"] = f"interpolated from the training mesh ({len(X)} vertices)"
-        return W, _stored_cubature(self.params["cubature_file"]), info
+        if _same_mesh(X, model.X):
+            return W, _stored_cubature(self.params["cubature_file"]), info
+        W = interpolate_basis(W, X, tets, model.X)
+        info["basis_mesh"] = f"interpolated from the training mesh ({len(X)} vertices)"
+        p = self.params
+        cubature = _cubature_on_mesh(model, W, str(p["cubature"]), p["cubature_file"], int(p["seed"]))
+        if cubature is not None:
+            info["cubature_mesh"] = "selected on this mesh from the training states"
+        return W, cubature, info
 
 
 def _same_mesh(X: np.ndarray, X_run: np.ndarray) -> bool:
@@ -245,18 +251,52 @@ def _cubature_file(folder: Path, spec: str, basis: Callable[[Model], np.ndarray]
                    seed: int) -> str | None:
     """For `spec` = "optimized:N", the file of that cubature selected on the training mesh (`optimized_cubature`
     on the training frames projected onto `basis(model)`, the basis W (n, 3, r) on that mesh), computed once and
-    stored in the model's folder; None for any other spec."""
+    stored in the model's folder with those latent training states (TRAINING_STATES, for a selection on another
+    mesh); None for any other spec."""
     if not spec.startswith("optimized:"):
         return None
-    path = folder / f"cubature_{spec.replace(':', '_')}.json"
-    if not path.is_file():
-        model = _model_of(Trajectory.load(trajectories[0]))
+    path, states = folder / f"cubature_{spec.replace(':', '_')}.json", folder / TRAINING_STATES
+    if not (path.is_file() and states.is_file()):
+        traj = Trajectory.load(trajectories[0])
+        model = _selection_model(traj.X, traj.tets)
         W = basis(model)
-        ids, weights = optimized_cubature(model, W, _training_q(W, model.mass, trajectories), int(spec.split(":")[1]),
-                                          seed=seed, progress=True)
-        write_json_atomic(path, {"ids": ids.tolist(), "weights": weights.tolist(), "n_vertices": model.n,
-                                 "n_tets": int(len(model.tets))})
+        q = _training_q(W, model.mass, trajectories)
+        with atomic_open(states, "wb") as f:
+            np.save(f, q, allow_pickle=False)
+        if not path.is_file():
+            _write_cubature(path, model, optimized_cubature(model, W, q, int(spec.split(":")[1]), seed=seed,
+                                                            progress=True))
     return str(path)
+
+
+#: The latent training states (S, r) an optimised cubature was selected from, stored beside it (`np.save`).
+TRAINING_STATES = "training_states.npy"
+
+
+def _write_cubature(path: Path, model: Model, cubature: Cubature) -> None:
+    """Store a cubature selected on `model`'s mesh (JSON: tet ids, weights, the mesh's vertex and tet counts)."""
+    ids, weights = cubature
+    write_json_atomic(path, {"ids": ids.tolist(), "weights": weights.tolist(), "n_vertices": model.n,
+                             "n_tets": int(len(model.tets))})
+
+
+def _cubature_on_mesh(model: Model, W: np.ndarray, spec: str, cubature_file: str, seed: int) -> dict | None:
+    """For `spec` = "optimized:N" on a mesh other than the training mesh, the cubature selected on this mesh
+    (`optimized_cubature` on the stored latent training states with this mesh's basis W (n, 3, r)), computed once
+    and stored beside the training mesh's (named by the mesh's digest); None for any other spec or without stored
+    training states (then `_cubature` falls back to uniform:N)."""
+    if not spec.startswith("optimized:") or not cubature_file:
+        return None
+    states = Path(cubature_file).parent / TRAINING_STATES
+    if not states.is_file():
+        return None
+    digest = hashlib.sha256(np.ascontiguousarray(model.X).tobytes() + model.tets.tobytes()).hexdigest()[:16]
+    path = Path(cubature_file).parent / f"cubature_{spec.replace(':', '_')}_mesh-{digest}.json"
+    if not path.is_file():
+        selection = _selection_model(model.X, model.tets)
+        _write_cubature(path, selection, optimized_cubature(selection, W, np.load(states, allow_pickle=False),
+                                                            int(spec.split(":")[1]), seed=seed))
+    return _stored_cubature(str(path))
 
 
 def _stored_cubature(path: str) -> dict | None:
@@ -264,13 +304,14 @@ def _stored_cubature(path: str) -> dict | None:
     return json.loads(Path(path).read_text()) if path else None
 
 
-def _model_of(traj: Trajectory) -> Model:
-    """A model of the training mesh (elasticity only) for cubature selection."""
+def _selection_model(X: np.ndarray, tets: np.ndarray) -> Model:
+    """A model of the mesh (rest positions X (n, 3) [m], tets (m, 4)) with elasticity only, for cubature
+    selection."""
     from frictionbench.scenarios.meshes import make_mesh
     from frictionbench.scenarios.model import Scenario
     from frictionbench.solvers.model import build_model
 
-    return build_model(Scenario(name="training-mesh", plane=None), make_mesh(traj.X, traj.tets, "training"))
+    return build_model(Scenario(name="training-mesh", plane=None), make_mesh(X, tets, "training"))
 
 
 class Licrom(_Reduced):
