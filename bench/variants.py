@@ -178,6 +178,7 @@ AFFINE12 = Variant("affine", {}, label="affine12")
 AFFINE_R24_TRUTHDATA = replace(AFFINE_R24, label="affine-r24-truthdata", training="truth")
 AFFINE_R24_CUB60_TRUTHDATA = replace(AFFINE_R24_CUB60, label="affine-r24-cub60-truthdata", training="truth")
 
+
 def _pod_remesh_points() -> list[Variant]:
     """The `pod-cubature` points that `pod-remesh` carries to the other mesh: BDF2 at dt and dt/2 with the start lag,
     at dt/4 with the fixed point."""
@@ -227,9 +228,9 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "pod-cubature": lambda: [level for v in POD_CUBATURE for lagged in (v, at_fixed_point(v))
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
-    # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start lag and at
-    # dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's other-mesh
-    # target: at most 1.5x the own-mesh error; on demand)
+    # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start
+    # lag and at dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's
+    # other-mesh target: at most 1.5x the own-mesh error; on demand)
     "pod-remesh": lambda: [v for level in _pod_remesh_points() for v in (level, on_other_mesh(level))],
     # accuracy-for-time sweeps of the full-space solver: looser Newton tolerance, larger time step, coarser mesh
     # (the other mesh of the shape, carried onto the reference mesh for the comparison), the second-order integrator
