@@ -149,16 +149,9 @@ class Pod(_Reduced):
 
     def skip(self, model: Model) -> str | None:
         """A basis stored without its training mesh's tets cannot be carried to another mesh; a mesh of another
-        shape is refused by the interpolation."""
-        W, X, tets = _load_pod(self.params["basis"])
-        if _same_mesh(X, model.X):
-            return None
-        if tets is None:
-            return (f"pod basis {self.params['basis']}: stored without its training mesh's tets, so it cannot be "
-                    f"carried to this mesh ({model.n} vertices, the training mesh {len(X)}); run the matrix again to "
-                    f"store them")
+        shape is refused by the interpolation (`_modes_on`, whose result `setup` then reuses)."""
         try:
-            interpolate_basis(W[:, :, :1], X, tets, model.X)
+            self._modes_on(model)
         except ValueError as err:
             return f"pod basis {self.params['basis']}: {err}"
         return None
@@ -166,18 +159,36 @@ class Pod(_Reduced):
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
         """The stored modes (interpolated on another mesh), their optimised cubature (if any) and the training time;
         `basis_mesh` says which."""
+        W, info = self._modes_on(model)
+        if "basis_mesh" not in info:
+            return W, _stored_cubature(self.params["cubature_file"]), dict(info)
+        p = self.params
+        cubature = _cubature_on_mesh(model, W, str(p["cubature"]), p["cubature_file"], int(p["seed"]))
+        extra = {"cubature_mesh": "selected on this mesh from the training states"} if cubature is not None else {}
+        return W, cubature, info | extra
+
+    #: The model the modes were last put on and (W, info) there (`_modes_on`).
+    _modes: tuple[Model, tuple[np.ndarray, dict]] | None = None
+
+    def _modes_on(self, model: Model) -> tuple[np.ndarray, dict]:
+        """The stored modes W (n, 3, r) on `model`'s mesh, interpolated at its vertices off the training mesh
+        (`interpolate_basis`), and the run's stats of them (`train_s`; `basis_mesh` where interpolated); loaded and
+        located once per model (`skip`, then `setup`). ValueError for a mesh of another shape, or off the training
+        mesh for a basis stored without that mesh's tets."""
+        if self._modes is not None and self._modes[0] is model:
+            return self._modes[1]
         path = self.params["basis"]
         W, X, tets = _load_pod(path)
         info = {"train_s": json.loads((Path(path).parent / "info.json").read_text())["train_s"]}
-        if _same_mesh(X, model.X):
-            return W, _stored_cubature(self.params["cubature_file"]), info
-        W = interpolate_basis(W, X, tets, model.X)
-        info["basis_mesh"] = f"interpolated from the training mesh ({len(X)} vertices)"
-        p = self.params
-        cubature = _cubature_on_mesh(model, W, str(p["cubature"]), p["cubature_file"], int(p["seed"]))
-        if cubature is not None:
-            info["cubature_mesh"] = "selected on this mesh from the training states"
-        return W, cubature, info
+        if not _same_mesh(X, model.X):
+            if tets is None:
+                raise ValueError(f"stored without its training mesh's tets, so it cannot be carried to this mesh "
+                                 f"({model.n} vertices, the training mesh {len(X)}); run the matrix again to store "
+                                 f"them")
+            W = interpolate_basis(W, X, tets, model.X)
+            info["basis_mesh"] = f"interpolated from the training mesh ({len(X)} vertices)"
+        self._modes = (model, (W, info))
+        return W, info
 
 
 def _same_mesh(X: np.ndarray, X_run: np.ndarray) -> bool:
