@@ -37,7 +37,7 @@ optional and defaults to the dataclass default unless said otherwise below):
 
     [contact]     law = "penalty" | "barrier", stiffness > 0 or "auto" (default; see Contact), damping >= 0,
                   friction_stiffness > 0, barrier_distance > 0, barrier_stiffness > 0,
-                  lag = "start" (default) | "fixed-point" (see Contact); instead of damping,
+                  lag = "start" (default) | "corrected" | "fixed-point" (see Contact); instead of damping,
                   damping_ratio >= 0 [-] (of a contact vertex on its contact spring; resolved to a damping when the
                   model is built; not with damping)
     [initial]     clearance >= 0 [m], rotation [deg], translation [m], velocity [m/s],

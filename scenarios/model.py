@@ -83,7 +83,7 @@ class Plane:
 
 
 #: The values of `Contact.lag`: where a step evaluates what the contact terms lag (`solvers.step.ContactLag`).
-CONTACT_LAGS = ("start", "fixed-point")
+CONTACT_LAGS = ("start", "corrected", "fixed-point")
 
 
 @dataclass(frozen=True)
@@ -104,8 +104,9 @@ class Contact:
     barrier_distance: dhat [m], activation distance of the barrier law.
     barrier_stiffness: kappa [Pa], barrier stiffness per unit area.
     lag: where a step evaluates what contact lags (friction's normal pressure, the contact-damping gate): `start`
-        (the start of the step, the paper's: first order in contact) or `fixed-point` (lagged iterations to the
-        step's own end state); `solvers.step.ContactLag`.
+        (the start of the step, the paper's: first order in contact), `corrected` (one re-lagged solve at the first
+        solve's end state: second order) or `fixed-point` (lagged iterations to the step's own end state);
+        `solvers.step.ContactLag`.
     """
 
     law: str = "penalty"

@@ -36,8 +36,9 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     start_tol = 1e-4                # steps (time.tol, docs/design.md "Adaptive steps") with time.tol =
                                     # start_tol / 8^k (required with and only with kind = "tolerance"; a fraction of
                                     # L in [1e-12, 0.5]): TOLERANCE_FACTOR
-    contact_lag = "start"           # the ladder runs' contact.lag: "start" (default, the scenario's) or
-                                    # "fixed-point" (lagged iterations; docs/design.md "Contact with the plane")
+    contact_lag = "start"           # the ladder runs' contact.lag: "start" (default, the scenario's),
+                                    # "corrected" (one re-lagged solve) or "fixed-point" (lagged iterations;
+                                    # docs/design.md "Contact with the plane")
 
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }

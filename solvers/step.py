@@ -67,6 +67,10 @@ class ContactLag:
 
     - `start` (the paper's, and the default): at the start of the step, x^n and v^n. The lag is then O(h) off the
       step's end, so contact and friction are first order under any integrator;
+    - `corrected`: the fixed point's first two solves: solve with the lag at the start, re-lag at that solution's
+      end state and solve once more from it (a predictor-corrector, as Heun's method corrects Euler's). The lag is
+      then O(h^2) off the step's end, so contact is second order at two solves, where the fixed point takes 2-5
+      (measured: docs/figures.md); the second solve is skipped where the re-lag is bitwise the same (free flight);
     - `fixed-point`: lagged iterations (IPC's): solve with the lag at the start, re-lag at the solution's end state
       and solve again from it, until re-lagging no longer moves the solution (the next solve's first Newton step is
       below tolerance, or the lagged quantities come out bitwise the same, as in free flight). The normal pressure
@@ -127,14 +131,15 @@ def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
                  ) -> tuple[NewtonResult, dict[str, int]]:
     """One step's Newton solve(s) under `lag` (`ContactLag`) from the start coordinates y and velocities v.
     Returns the last solve's result with the iterations, halvings, linear iterations and stalls of every solve
-    summed, and (a `fixed-point` step only) the counters `lag_solves` (solves run) and `lag_unconverged` (1 where
-    it stopped at LAG_MAX_SOLVES)."""
+    summed, and the counters `lag_solves` (solves run: a `corrected` or `fixed-point` step) and `lag_unconverged`
+    (a `fixed-point` step: 1 where it stopped at LAG_MAX_SOLVES)."""
     key = step.relag(y, v)
     res = step.newton(None)
-    if lag.mode != "fixed-point":
+    if lag.mode == "start":
         return res, {}
+    cap = 2 if lag.mode == "corrected" else LAG_MAX_SOLVES
     solves, unconverged = 1, 1
-    while solves < LAG_MAX_SOLVES:
+    while solves < cap:
         new_key = step.relag(res.y, step.velocity(res.y))
         if all(_same(a, b) for a, b in zip(key, new_key)):
             unconverged = 0
@@ -146,6 +151,8 @@ def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
         if again.iters == 1 and again.converged:
             unconverged = 0
             break
+    if lag.mode == "corrected":
+        return res, {"lag_solves": solves}
     return res, {"lag_solves": solves, "lag_unconverged": unconverged}
 
 
