@@ -141,6 +141,15 @@ def test_pull_back_of_hessian_factors_is_that_of_their_hessians(block, dense, ro
     assert np.abs(H - H_ref).max() < 1e-12 * np.abs(H_ref).max()
     assert np.abs(g - g_ref).max() < 1e-12 * np.abs(g_ref).max()
     assert rm.pull_back(None, None) == rm.pull_back(None, []) == (None, None)
+    # the dense products in single precision: the Hessian to single's round-off, exactly symmetric, in double; the
+    # gradient in double as before (the sparse products stay in double)
+    single = ReducedModel.build(model, W, (ids, w), hessian="single")
+    g32, H32 = single.pull_back(P, factors)
+    assert H32.dtype == np.float64 and np.array_equal(H32, H32.T) and np.array_equal(g32, g)
+    if dense:
+        assert 1e-12 < np.abs(H32 - H_ref).max() / np.abs(H_ref).max() < 1e-5
+    else:
+        assert np.array_equal(H32, H)
 
 
 def test_cubature_weights_and_ids_are_checked(block):
@@ -394,6 +403,31 @@ def test_contact_candidates_give_the_all_points_trajectory_to_round_off(block, k
     # the selection leaves points out (the block's top and sides) and keeps the bottom face once in contact
     p = model.points.size
     assert max(counts) < 0.5 * p and np.mean(np.array(counts) > 0) > 0.5
+
+
+def test_a_single_precision_hessian_steps_as_double_does(block):
+    """The Hessian's dense products in single precision (`hessian = "single"`) only perturb Newton's direction: a
+    damped block dropped and sliding under friction with the fixed-point lag takes the same Newton iterations every
+    step, and its trajectory is double's to round-off (Newton stops where the double gradient says)."""
+    sc = candidate_scene("penalty_damped", 0.3)
+    model = build_model(replace(sc, time=replace(sc.time, integrator="bdf2"),
+                                contact=replace(sc.contact, lag="fixed-point")), block)
+    W = smooth_basis(model.X, 24, 0.002 * model.L)
+    (ref, ref_stats), (traj, stats) = (simulate_reduced(model, ReducedSolver(model, W, hessian=h))
+                                       for h in ("double", "single"))
+    assert all(s.converged for s in stats)
+    assert [s.iterations for s in stats] == [s.iterations for s in ref_stats]
+    assert 0.0 < np.abs(traj.x - ref.x).max() < 1e-9 * model.L
+
+
+def test_reduced_tolerance_and_precision_are_checked(block):
+    model = build_model(candidate_scene("penalty_damped", 0.3), block)
+    W = smooth_basis(model.X, 12, 0.002 * model.L)
+    for tol in (0.0, -1e-5, float("nan"), float("inf"), True, "1e-5"):
+        with pytest.raises(ValueError, match=f"tol = {tol!r}: expected a finite tolerance > 0"):
+            ReducedSolver(model, W, tol=tol)
+    with pytest.raises(ValueError, match="hessian = 'half': expected one of \\['double', 'single'\\]"):
+        ReducedSolver(model, W, hessian="half")
 
 
 @pytest.mark.parametrize("mu", [0.0, 0.3])

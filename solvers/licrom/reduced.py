@@ -76,6 +76,13 @@ ROW_NORM_ALLOWANCE = 1e-12
 """Round-off allowance of the upper bound W_rest_norm |dq| of the other rows' |W_k dq| (relative): where the bound
 decides a step converged, the product over every row would have decided the same."""
 
+HESSIAN_PRECISIONS = {"double": np.float64, "single": np.float32}
+"""Precisions of the reduced Hessian's dense products B^T (w V H9) B (`ReducedModel.pull_back`; the solvers'
+`hessian` parameter). The Hessian only sets Newton's direction; the energy and the gradient, which decide where a
+step stops, stay in double. In single the products take under half the time (half or more of an r = 84 step on
+210 tets), and a run's iterations and trajectory are double's to round-off (measured on the coarse sphere at r = 60
+and 84: the same iteration counts, positions within 1.1e-13 of L; docs/figures.md)."""
+
 CANDIDATE_MARGIN = 1e-9
 """Round-off allowance of the contact candidates' test, relative to the body size L: a point is a candidate when
 its signed distance, computed as phi_rest + N q, is below the terms' reach plus this much (the terms compute it as
@@ -103,7 +110,8 @@ class ReducedModel:
     [m per unit q] the rows n^T W_p, so that phi_p(q) = phi_rest_p + N_p q (None without a plane); W_extreme
     (k, r) the EXTREME_ROWS rows of W (3n x r) with the largest norms, and W_rest_norm the largest Euclidean norm of
     the other rows (times 1 + ROW_NORM_ALLOWANCE), so that |W dq|_inf <= max(|W_extreme dq|_inf, W_rest_norm |dq|)
-    [m per unit q]; device: where the elastic kernel runs ("cpu" or "cuda", `solvers.licrom.kernels`).
+    [m per unit q]; device: where the elastic kernel runs ("cpu" or "cuda", `solvers.licrom.kernels`);
+    B_hessian: B in the precision of the dense Hessian products (`HESSIAN_PRECISIONS`; None: B itself, double).
     """
 
     model: Model
@@ -124,17 +132,22 @@ class ReducedModel:
     W_extreme: np.ndarray
     W_rest_norm: float
     device: str = "cpu"
+    B_hessian: np.ndarray | None = None
 
     @classmethod
     def build(cls, model: Model, W: np.ndarray, cubature: Cubature | None = None,
-              contact_samples: int | None = None, seed: int = 0, device: str = "cpu") -> "ReducedModel":
+              contact_samples: int | None = None, seed: int = 0, device: str = "cpu",
+              hessian: str = "double") -> "ReducedModel":
         """Precompute everything for the basis W (n, 3, r) on `model`'s mesh.
 
         cubature: (tet ids, weights), None for every tet with weight 1. contact_samples: keep that many of the
         model's contact points (uniformly at random, `seed`), areas re-weighted to keep the total; None keeps all.
-        device: where the elastic kernel runs ("cpu" or "cuda").
+        device: where the elastic kernel runs ("cpu" or "cuda"). hessian: the precision of the dense Hessian
+        products (`HESSIAN_PRECISIONS`).
         """
         K.check_device(device)
+        if hessian not in HESSIAN_PRECISIONS:
+            raise ValueError(f"hessian = {hessian!r}: expected one of {list(HESSIAN_PRECISIONS)}")
         n, r = model.n, W.shape[2]
         if W.shape != (n, 3, r):
             raise ValueError(f"basis shape {W.shape}: expected ({n}, 3, r) for this mesh")
@@ -166,7 +179,7 @@ class ReducedModel:
                    N=None if n is None else np.ascontiguousarray(np.einsum("pak,a->pk", Wp, n)),
                    W_extreme=Wf[by_norm[-EXTREME_ROWS:]],
                    W_rest_norm=float(row_norms[by_norm[:-EXTREME_ROWS]].max(initial=0.0)) * (1 + ROW_NORM_ALLOWANCE),
-                   device=device)
+                   device=device, B_hessian=None if hessian == "double" else B.astype(HESSIAN_PRECISIONS[hessian]))
 
     @property
     def r(self) -> int:
@@ -202,22 +215,25 @@ class ReducedModel:
         symmetric. One factor: G^T G with G the stacked sqrt(w_c V_c) L_c B_c (kc, r). Several: the 9x9 sums H9_c
         first, then one general product B^T (w V H9 B) symmetrised; that reduces 9 rows a tet where stacking the
         factors would reduce sum_t k_t (measured at c = 90, r = 36 with the SNH and viscous factors, 24 rows: 163
-        against 221-237 us). None where the input is None (or the factors are empty)."""
+        against 221-237 us). The dense products run in the precision of `B_hessian` (their sum returned in double);
+        the gradient and the sparse products in double. None where the input is None (or the factors are empty)."""
         Bf = self.B.reshape(-1, self.r)
         g = None if P is None else Bf.T @ (self.wV[:, None] * P.reshape(-1, 9)).ravel()
         if not factors:
             return g, None
+        Bh = self.B if self.B_hessian is None else self.B_hessian
         if len(factors) == 1:
             Ls = np.sqrt(self.wV)[:, None, None] * factors[0]
             if self.B_sparse is None:
-                G = np.matmul(Ls, self.B).reshape(-1, self.r)
-                return g, G.T @ G
+                G = np.matmul(Ls.astype(Bh.dtype, copy=False), Bh).reshape(-1, self.r)
+                return g, (G.T @ G).astype(np.float64, copy=False)
             G = _block_diagonal(Ls) @ self.B_sparse
             return g, (G.T @ G).toarray()
         L = np.concatenate(factors, axis=1)
         wH = np.matmul(L.transpose(0, 2, 1), self.wV[:, None, None] * L)  # (c, 9, 9): w_c V_c H9_c
         if self.B_sparse is None:
-            H = Bf.T @ np.matmul(wH, self.B).reshape(-1, self.r)
+            H = (Bh.reshape(-1, self.r).T @ np.matmul(wH.astype(Bh.dtype, copy=False), Bh).reshape(-1, self.r)
+                 ).astype(np.float64, copy=False)
         else:
             H = (self.B_sparse.T @ (_block_diagonal(wH) @ self.B_sparse)).toarray()
         return g, 0.5 * (H + H.T)
@@ -353,7 +369,8 @@ class ReducedSolver:
     model: the scene on the mesh W was evaluated on; cubature: (tet ids, weights) or None for every tet (weight
     1); scheme: "newton" or "projected_gradient"; device: where the cubature kernel runs ("cpu" or "cuda"; the point
     terms' kernels run on the CPU, their work being small);
-    tol: convergence |W dq|_inf / h < tol * L [1/s]; max_iter: iterations per step; alpha: the
+    tol: convergence |W dq|_inf / h < tol * L [1/s], finite and > 0; hessian: the precision of the dense Hessian
+    products (`HESSIAN_PRECISIONS`); max_iter: iterations per step; alpha: the
     projected-gradient step size [-]; contact_samples, seed: contact point subsampling (None keeps all);
     armijo, max_halvings: Newton line search; contact_candidates: evaluate the point terms at the candidate
     points only (`_candidates`; equal to all points to round-off), False: at every sample point;
@@ -368,16 +385,18 @@ class ReducedSolver:
                  device: str = "cpu", tol: float = 1e-5, max_iter: int = 50, alpha: float = 1.0,
                  contact_samples: int | None = None, seed: int = 0, name: str | None = None,
                  armijo: float = 1e-4, max_halvings: int = 40, contact_candidates: bool = True,
-                 fixed_iterations: bool = False, velocity_scale: float = 1.0) -> None:
+                 fixed_iterations: bool = False, velocity_scale: float = 1.0, hessian: str = "double") -> None:
         if scheme not in ("newton", "projected_gradient"):
             raise ValueError(f"scheme = {scheme!r}: expected 'newton' or 'projected_gradient'")
         if fixed_iterations and scheme != "projected_gradient":
             raise ValueError(f"scheme = {scheme!r}: a fixed iteration count is the projected gradient's only")
         if not 0.0 < velocity_scale <= 1.0:
             raise ValueError(f"velocity_scale = {velocity_scale!r}: expected a factor in (0, 1]")
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0.0 < tol < np.inf:
+            raise ValueError(f"tol = {tol!r}: expected a finite tolerance > 0 [1/s, relative to L]")
         self.fixed_iterations, self.velocity_scale = fixed_iterations, velocity_scale
         self.model = model
-        self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed, device)
+        self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed, device, hessian)
         self.scheme, self.tol, self.max_iter, self.alpha = scheme, tol, max_iter, alpha
         self.armijo, self.max_halvings = armijo, max_halvings
         if name is not None:
