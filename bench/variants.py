@@ -116,11 +116,16 @@ AFFINE_R24 = Variant("licrom", LICROM_AFFINE, label="affine-r24")
 AFFINE_R24_CUB60 = Variant("licrom", LICROM_AFFINE | {"cubature": "optimized:60"}, label="affine-r24-cub60")
 
 
+def at_lag(variant: Variant, lag: str) -> Variant:
+    """The variant with contact lagged by the rule `lag` (`contact.lag`: "corrected", one re-lagged solve at the
+    first solve's end; "fixed-point", as the truth ladders of paper-damped run) instead of the scene's start of the
+    step; labelled `<label>-<lag>`."""
+    return replace(variant, label=f"{variant.label}-{lag}", overrides=variant.overrides | {"contact.lag": lag})
+
+
 def at_fixed_point(variant: Variant) -> Variant:
-    """The variant with contact lagged to each step's fixed point (`contact.lag = "fixed-point"`, as the truth ladders
-    of paper-damped run) instead of the scene's start of the step; labelled `<label>-fixed-point`."""
-    return replace(variant, label=f"{variant.label}-fixed-point",
-                   overrides=variant.overrides | {"contact.lag": "fixed-point"})
+    """The variant with contact lagged to each step's fixed point (`at_lag`); labelled `<label>-fixed-point`."""
+    return at_lag(variant, "fixed-point")
 
 
 #: The cubature variant at the fixed point, on its trained model: whether a reduced curve's floor is the reduced
@@ -149,6 +154,36 @@ RANK_DYNAMICS = [
 POD_CUBATURE = [Variant("pod", {"r": r, "affine": True, "cubature": f"optimized:{5 * r // 2}"},
                         label=f"pod-affine-r{r}-cub{5 * r // 2}{tag}", training=data)
                 for r in (36, 84) for data, tag in (("truth", "-truthdata"), ("reference", ""))]
+
+
+#: POD with the affine columns at r = 60 on an optimised cubature of 150 tets (2.5 r, as `POD_CUBATURE`), fitted to
+#: the truths and to the references: the rank between the two of `pod-cubature`.
+POD_R60 = [Variant("pod", {"r": 60, "affine": True, "cubature": "optimized:150"}, label=f"pod-affine-r60-cub150{tag}",
+                   training=data) for data, tag in (("truth", "-truthdata"), ("reference", ""))]
+
+#: The `pod-fast` points' solver settings: Newton's tolerance of the full-space `tol1e-3` sweep (1e-3 L/s, where the
+#: default is 1e-5) and the reduced Hessian's dense products in single precision (`solvers.licrom.reduced`,
+#: `HESSIAN_PRECISIONS`).
+FAST = {"tol": 1e-3, "hessian": "single"}
+
+
+def fast(variant: Variant) -> Variant:
+    """The variant at the `FAST` settings, on its trained model (neither setting is a training parameter); labelled
+    `<label>-tol1e-3-single`."""
+    return replace(variant, label=f"{variant.label}-tol1e-3-single", params=variant.params | FAST,
+                   model=variant.model or variant.label)
+
+
+def _pod_fast() -> list[Variant]:
+    """The `pod-fast` set: under BDF2 with the start lag at dt, dt/2 and dt/4, POD at r = 60 on 150 tets at the
+    default settings (r = 36 and 84 at them are `pod-cubature`'s), and at r = 36, 60 and 84 (on 90, 150 and 210 tets)
+    at `FAST`'s, each fitted to the truths and to the references; and the full-space solver at FAST's tolerance on
+    the paper-damped truth ladders' settings (BDF2, contact at each step's fixed point) at dt, dt/2 and dt/4, so that
+    the looser tolerance is measured on both sides."""
+    by_rank = [v for r in (36, 60, 84) for v in (POD_R60 if r == 60 else POD_CUBATURE) if v.params["r"] == r]
+    full = at_fixed_point(Variant("full", {"tol": FAST["tol"]}, label="tol1e-3"))
+    return [level for v in (*POD_R60, *map(fast, by_rank), full)
+            for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",))]
 
 
 def on_other_mesh(variant: Variant) -> Variant:
@@ -222,11 +257,16 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # on demand; needs a truth): which rank the reduced dynamics, not only the subspace, need to reach the ladder's
     # range, and what it costs
     "rank-dynamics": lambda: [at_truth_step(v) for v in RANK_DYNAMICS],
-    # those ranks on an optimised cubature, each two curves under BDF2 at dt, dt/2 and dt/4: contact lagged to the
-    # start of the step (the scene's own, and cheaper) and to each step's fixed point (the truth ladders' settings)
-    # (issue 22; on demand; the truth-trained ones need a truth)
-    "pod-cubature": lambda: [level for v in POD_CUBATURE for lagged in (v, at_fixed_point(v))
+    # those ranks on an optimised cubature, each three curves under BDF2 at dt, dt/2 and dt/4: contact lagged to the
+    # start of the step (the scene's own, and cheapest), corrected once at the first solve's end (second order in the
+    # lag at two solves) and to each step's fixed point (the truth ladders' settings) (issue 22; on demand; the
+    # truth-trained ones need a truth)
+    "pod-cubature": lambda: [level for v in POD_CUBATURE for lagged in (v, at_lag(v, "corrected"), at_fixed_point(v))
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
+    # POD at r = 60 (between pod-cubature's ranks) and, at a looser Newton tolerance with the Hessian's products in
+    # single precision, at r = 36, 60 and 84, each a curve at dt, dt/2 and dt/4; the full-space solver at the looser
+    # tolerance on the truth ladders' settings (issue 22's 100x; on demand; the truth-trained ones need a truth)
+    "pod-fast": _pod_fast,
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
     # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start
     # lag and at dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's

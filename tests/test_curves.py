@@ -77,10 +77,10 @@ def test_the_rank_dynamics_set_runs_every_variant_at_the_truth_ladders_step_sett
     assert all("rank-dynamics" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
-def test_the_pod_cubature_set_draws_curves_under_both_lags():
+def test_the_pod_cubature_set_draws_curves_under_three_lags():
     sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
     pod = variant_set("pod-cubature")
-    assert len(pod) == 24 and len({v.label for v in pod}) == 24 and all(v.solver == "pod" for v in pod)
+    assert len(pod) == 36 and len({v.label for v in pod}) == 36 and all(v.solver == "pod" for v in pod)
     assert {(v.params["r"], v.params["cubature"], v.training) for v in pod} == {
         (r, f"optimized:{c}", data) for r, c in ((36, 90), (84, 210)) for data in ("truth", "reference")}
     lags = []
@@ -89,8 +89,9 @@ def test_the_pod_cubature_set_draws_curves_under_both_lags():
         assert level.time.integrator == "bdf2" and v.model == v.curve.removesuffix("-bdf2")
         assert level.time.dt in (pytest.approx(0.01), pytest.approx(0.005), pytest.approx(0.0025))
         lags.append(level.contact.lag)
-        assert (level.contact.lag == "fixed-point") == ("-fixed-point-" in v.label)
-    assert lags.count("start") == lags.count("fixed-point") == 12 and len({v.curve for v in pod}) == 8
+        assert level.contact.lag == "start" or f"-{level.contact.lag}-" in v.label
+    assert lags.count("start") == lags.count("corrected") == lags.count("fixed-point") == 12
+    assert len({v.curve for v in pod}) == 12
     assert all("pod-cubature" not in s.split(",") for s in (DEFAULT, *SUITE_DEFAULTS.values()))
 
 
@@ -198,3 +199,28 @@ def test_the_frontier_joins_each_curve_per_scenario_in_its_points_colour_and_the
     assert HOSTILE not in page and "What floors each variant&#x27;s curve" in page
     frontier = page.split('<section id="accuracy-vs-time">', 1)[1].split("</section>", 1)[0]
     assert frontier.count(f'<td class="text">{TIME_STEP}</td>') == 4  # each curve's finest row, per scenario
+
+
+def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
+    """`pod-fast`: POD at r = 60 on 150 tets at the defaults; r = 36, 60, 84 at tol 1e-3 with a single-precision
+    Hessian on the models of their default twins (no training of their own); the full-space solver at the same
+    tolerance on the truth ladders' settings. Each a curve at dt, dt/2, dt/4 under BDF2."""
+    sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
+    fast = variant_set("pod-fast")
+    assert len(fast) == 27 and len({v.label for v in fast}) == 27
+    pod = [v for v in fast if v.solver == "pod"]
+    full = [v for v in fast if v.solver == "full"]
+    assert {(v.params["r"], v.params["cubature"]) for v in pod} == {(36, "optimized:90"), (60, "optimized:150"),
+                                                                     (84, "optimized:210")}
+    for v in pod:
+        quick = v.params.get("tol") == 1e-3
+        assert quick == ("-tol1e-3-single-" in v.label) == (v.params.get("hessian") == "single")
+        assert v.model == f"pod-affine-r{v.params['r']}-cub{v.params['cubature'].split(':')[1]}" + (
+            "-truthdata" if v.training == "truth" else "")
+        assert quick or v.params["r"] == 60
+    assert len(full) == 3 and all(v.params == {"tol": 1e-3} for v in full)
+    for v in fast:
+        level = v.scenario(sc)
+        assert level.time.integrator == "bdf2"
+        assert level.contact.lag == ("fixed-point" if v.solver == "full" else "start")
+    assert sorted(v.scenario(sc).time.dt for v in full) == pytest.approx([0.0025, 0.005, 0.01])
