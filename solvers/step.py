@@ -68,9 +68,10 @@ class ContactLag:
     - `start` (the paper's, and the default): at the start of the step, x^n and v^n. The lag is then O(h) off the
       step's end, so contact and friction are first order under any integrator;
     - `corrected`: the fixed point's first two solves: solve with the lag at the start, re-lag at that solution's
-      end state and solve once more from it (a predictor-corrector, as Heun's method corrects Euler's). The lag is
-      then O(h^2) off the step's end, so contact is second order at two solves, where the fixed point takes 2-5
-      (measured: docs/figures.md); the second solve is skipped where the re-lag is bitwise the same (free flight);
+      end state and solve once more from it (a predictor-corrector, as Heun's method corrects Euler's). Where the
+      step resolves contact the lag is then O(h^2) off the step's end: second order at two solves, where the fixed
+      point takes 2-5; in an impact or a stick/slip switch inside a step one correction is not the fixed point
+      (measured: docs/figures.md). The second solve is skipped where the re-lag is bitwise the same (free flight);
     - `fixed-point`: lagged iterations (IPC's): solve with the lag at the start, re-lag at the solution's end state
       and solve again from it, until re-lagging no longer moves the solution (the next solve's first Newton step is
       below tolerance, or the lagged quantities come out bitwise the same, as in free flight). The normal pressure

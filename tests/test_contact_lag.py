@@ -37,12 +37,11 @@ def test_an_unknown_lag_names_the_field() -> None:
         ContactLag("implicit")
 
 
-def test_a_fixed_point_step_is_its_own_lag() -> None:
-    """After a fixed-point step in contact, lagging at its end state and solving again does not move it (one Newton
-    iteration below tolerance); a free-flight step solves once. (Backward Euler: its step constants need no
-    history, so the test can rebuild the last step.)"""
-    sc = sliding_block("fixed-point")
-    sc = replace(sc, time=replace(sc.time, integrator="backward-euler"))
+def three_steps(lag: str):
+    """The sliding block under backward Euler (its step constants need no history, so a test can rebuild the last
+    step) stepped three times at dt 0.01 by the full-space solver: (model, solver, end state, the last step's
+    statistics); the end state's `previous` is the state before."""
+    sc = replace(sliding_block(lag), time=TimeSpec(dt=0.01, duration=0.3, integrator="backward-euler"))
     model = build_model(sc, load_mesh(sc.mesh))
     solver = FullSpaceSolver(model)
     state = initial_state(model)
@@ -50,6 +49,21 @@ def test_a_fixed_point_step_is_its_own_lag() -> None:
         out = State(state.x, state.v, state.t)
         stats = solver.step(state, out, 0.01)
         state = out
+    return model, solver, state, stats
+
+
+def flight_solves(lag: str) -> int:
+    """The solves of one step of the sliding block released 5 cm above the slope (free flight)."""
+    sc = sliding_block(lag)
+    model = build_model(replace(sc, initial=replace(sc.initial, clearance=0.05)), load_mesh(sc.mesh))
+    s0 = initial_state(model)
+    return FullSpaceSolver(model).step(s0, State(s0.x, s0.v), 0.01).counters["lag_solves"]
+
+
+def test_a_fixed_point_step_is_its_own_lag() -> None:
+    """After a fixed-point step in contact, lagging at its end state and solving again does not move it (one Newton
+    iteration below tolerance); a free-flight step solves once."""
+    model, solver, state, stats = three_steps("fixed-point")
     assert stats.counters["lag_solves"] >= 2 and stats.counters["lag_unconverged"] == 0
     lag = model.integrator.lagged(state.previous.x, state.previous.v, 0.01)
     step = _LaggedStep(solver, lag, state.previous.x, 0.01)
@@ -60,13 +74,7 @@ def test_a_fixed_point_step_is_its_own_lag() -> None:
     fn_end, gate, _ = lagged_contact(solver.terms, model, state.x[p], state.v[p], state.previous.x[p])
     assert gate.any()
     assert fn_end is not None and fn_end.max() > 0.0
-
-    flight = replace(sliding_block("fixed-point"), initial=replace(sliding_block("fixed-point").initial,
-                                                                   clearance=0.05))
-    m2 = build_model(flight, load_mesh(flight.mesh))
-    s0 = initial_state(m2)
-    st = FullSpaceSolver(m2).step(s0, State(s0.x, s0.v), 0.01)
-    assert st.counters["lag_solves"] == 1
+    assert flight_solves("fixed-point") == 1
 
 
 def first_difference(lag: str, solver: str) -> float:
@@ -101,14 +109,8 @@ def test_a_relagged_step_removes_the_first_order_lag_error(solver: str, lag: str
 def test_a_corrected_step_is_the_fixed_points_first_two_solves() -> None:
     """In contact a corrected step solves twice and ends where the fixed point's second solve does (its counters say
     so, without `lag_unconverged`: it stops there by design); in free flight it solves once."""
-    sc = replace(sliding_block("corrected"), time=TimeSpec(dt=0.01, duration=0.3, integrator="backward-euler"))
-    model = build_model(sc, load_mesh(sc.mesh))
-    solver = FullSpaceSolver(model)
-    state = initial_state(model)
-    for _ in range(3):
-        out = State(state.x, state.v, state.t)
-        stats = solver.step(state, out, 0.01)
-        previous, state = state, out
+    model, solver, state, stats = three_steps("corrected")
+    previous = state.previous
     assert stats.counters["lag_solves"] == 2 and "lag_unconverged" not in stats.counters
     lag = model.integrator.lagged(previous.x, previous.v, 0.01)
     step = _LaggedStep(solver, lag, previous.x, 0.01)
@@ -118,11 +120,7 @@ def test_a_corrected_step_is_the_fixed_points_first_two_solves() -> None:
     second = step.newton(first.y)
     assert np.array_equal(second.y, state.x)
     assert not np.array_equal(first.y, state.x)
-
-    flight = replace(sc, initial=replace(sc.initial, clearance=0.05))
-    m2 = build_model(flight, load_mesh(flight.mesh))
-    s0 = initial_state(m2)
-    assert FullSpaceSolver(m2).step(s0, State(s0.x, s0.v), 0.01).counters["lag_solves"] == 1
+    assert flight_solves("corrected") == 1
 
 
 def test_a_contact_damping_ratio_is_resolved_per_mesh() -> None:

@@ -19,6 +19,7 @@ from frictionbench.bench.variants import (AFFINE_R24, AFFINE_R24_CUB60, DEFAULT,
 from frictionbench.reports.html import write_report_html
 from frictionbench.reports.plots import frontier_figure
 from frictionbench.scenarios.load import scenario_from_dict
+from frictionbench.solvers.full.solver import NewtonSettings
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 from test_reports import HOSTILE, check_html
@@ -207,7 +208,7 @@ def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     tolerance on the truth ladders' settings. Each a curve at dt, dt/2, dt/4 under BDF2."""
     sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
     fast = variant_set("pod-fast")
-    assert len(fast) == 27 and len({v.label for v in fast}) == 27
+    assert len(fast) == 30 and len({v.label for v in fast}) == 30
     pod = [v for v in fast if v.solver == "pod"]
     full = [v for v in fast if v.solver == "full"]
     assert {(v.params["r"], v.params["cubature"]) for v in pod} == {(36, "optimized:90"), (60, "optimized:150"),
@@ -218,9 +219,10 @@ def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
         assert v.model == f"pod-affine-r{v.params['r']}-cub{v.params['cubature'].split(':')[1]}" + (
             "-truthdata" if v.training == "truth" else "")
         assert quick or v.params["r"] == 60
-    assert len(full) == 3 and all(v.params == {"tol": 1e-3} for v in full)
+    assert len(full) == 6 and sorted(v.params["tol"] for v in full) == [1e-5] * 3 + [1e-3] * 3
+    assert NewtonSettings.tol == 1e-5  # the tol1e-5 levels are the truth ladder's own settings
     for v in fast:
         level = v.scenario(sc)
         assert level.time.integrator == "bdf2"
         assert level.contact.lag == ("fixed-point" if v.solver == "full" else "start")
-    assert sorted(v.scenario(sc).time.dt for v in full) == pytest.approx([0.0025, 0.005, 0.01])
+    assert sorted(v.scenario(sc).time.dt for v in full) == pytest.approx([0.0025] * 2 + [0.005] * 2 + [0.01] * 2)
