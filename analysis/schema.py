@@ -286,6 +286,11 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
             "frictionbench.analysis.truth.with_frontier", summary=True),
     _timing("frontier_note", "none", "text", "why speedup_equal_accuracy is missing or an upper bound",
             "frictionbench.analysis.truth.with_frontier", summary=True),
+    _timing("timed_beside_ladder", "none", "flag", "this run and every ladder run of its scenario were timed in one "
+            "session (False: speedup_equal_accuracy divides costs timed apart)",
+            "frictionbench.analysis.truth.with_frontier", summary=True),
+    _timing("timed_in", "none", "text", "the session that ran and timed this run (a resumed store keeps it)",
+            "frictionbench.bench.runner.run_tasks"),
     Column("truth_certified", "accuracy", "true", "flag", "the truth's last ladder difference met the tolerance",
            "frictionbench.analysis.rows.truth_columns", summary=True),
     Column("truth_horizon_s", "accuracy", unit="s", meaning="end of the first stretch the truth meets tol frame by "

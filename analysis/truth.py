@@ -25,7 +25,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from frictionbench.analysis.schema import number
+from frictionbench.analysis.schema import is_missing, number
 from frictionbench.scenarios.suites import TOLERANCE_FACTOR
 from frictionbench.solvers.integrators import Integrator
 
@@ -192,20 +192,32 @@ def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
     """Rows with `speedup_equal_accuracy` and `frontier_note` on every row that has err_truth and
     wall_s_per_sim_s: against the Pareto front of its scenario's ladder rows (rows with a non-empty `ladder`,
     every integrator pooled: the cheapest full-space run at each accuracy), `speedup_equal_accuracy` (the truth's
-    own run, err_truth 0, gets the note `the truth`). Rows of
-    scenarios without ladder rows, and rows without the two figures, are returned unchanged."""
+    own run, err_truth 0, gets the note `the truth`); and `timed_beside_ladder`: whether the row's run was timed in
+    the session that timed every ladder run of its scenario (`timed_in`; None where a run does not say, as in
+    stores written before sessions were recorded). Rows of scenarios without ladder rows, and rows without the two
+    figures, are returned unchanged."""
     fronts: dict[object, list[tuple[float, float]]] = {}
+    sessions: dict[object, set] = {}
     for r in rows:
         if r.get("ladder") and r.get("status") == "ok":
             e, c = number(r.get("err_truth"), finite=True), number(r.get("wall_s_per_sim_s"), finite=True)
             if e is not None and c is not None:
                 fronts.setdefault(r["scenario"], []).append((e, c))
+                sessions.setdefault(r["scenario"], set()).add(_session(r))
     fronts = {k: pareto_front(v) for k, v in fronts.items()}
     out = []
     for r in rows:
         e, c = number(r.get("err_truth"), finite=True), number(r.get("wall_s_per_sim_s"), finite=True)
         if r.get("scenario") in fronts and e is not None and c is not None and r.get("status") == "ok":
             speedup, note = speedup_equal_accuracy(fronts[r["scenario"]], e, c) if e > 0.0 else (None, "the truth")
-            r = dict(r) | {"speedup_equal_accuracy": speedup, "frontier_note": note}
+            ladder, own = sessions[r["scenario"]], _session(r)
+            beside = None if own is None or None in ladder else ladder == {own}
+            r = dict(r) | {"speedup_equal_accuracy": speedup, "frontier_note": note, "timed_beside_ladder": beside}
         out.append(dict(r))
     return out
+
+
+def _session(row: Mapping[str, object]) -> str | None:
+    """The session that timed a row's run (`timed_in`), None where the row does not say."""
+    value = row.get("timed_in")
+    return None if is_missing(value) else str(value)

@@ -12,11 +12,13 @@ a task carries what its worker needs and returns what it produced (`bench.payloa
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -141,6 +143,11 @@ def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: 
     return RunResult(traj, stats)
 
 
+#: This process's session (its start in UTC and its process id): every run it computes is stored with it as
+#: `timed_in`, so that a row can say whether its cost and its ladder's were timed in one session
+#: (`analysis.truth.with_frontier`, `timed_beside_ladder`); a resumed store keeps each run's own session.
+SESSION = f"{datetime.now(UTC):%Y-%m-%dT%H:%M:%SZ}-{os.getpid()}"
+
 #: Most submissions of one task whose future the executor cancels (`run_tasks`).
 MAX_ATTEMPTS = 3
 
@@ -208,7 +215,7 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
             except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
                 lost.append(err)      # still stored, and the rerun computes only this one
             else:
-                store.save(t.key, result.trajectory, result.stats)
+                store.save(t.key, result.trajectory, result.stats | {"timed_in": SESSION})
                 computed += 1
                 for n in not_done(then(t) if then is not None else ()):
                     pending[submit(n)] = n

@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from frictionbench.analysis.schema import is_missing, stability_metrics, truthy
+from frictionbench.analysis.schema import flag, is_missing, stability_metrics, truthy
 from frictionbench.analysis.table import variant_labels
 from frictionbench.reports.plots import accuracy_columns, ladder_mask, numeric_column
 
@@ -122,8 +122,9 @@ BEST_SPEEDUP, BEST_AT = "best measured speedup_equal_accuracy", "at err_truth (v
 def best_measured_speedup(rows: pd.DataFrame) -> dict[str, object]:
     """Of a family's finished rows (any variant, any scenario), the largest `speedup_equal_accuracy` that is
     measured, i.e. interpolated on the full-space ladder (no `frontier_note`: not an upper bound, not beyond the
-    ladder), and the err_truth [fraction of L], variant and scenario at which it holds; NaN and an en dash where
-    none is."""
+    ladder), and the err_truth [fraction of L], variant and scenario at which it holds, saying so where its run
+    and its ladder's were timed in different sessions (`timed_beside_ladder` False: a resumed store); NaN and an en
+    dash where none is."""
     speed = numeric_column(rows, "speedup_equal_accuracy").where(_runs_ok(rows))
     if "frontier_note" in rows:
         notes = rows["frontier_note"].map(lambda v: "" if is_missing(v) else str(v).strip())
@@ -132,8 +133,10 @@ def best_measured_speedup(rows: pd.DataFrame) -> dict[str, object]:
         return {BEST_SPEEDUP: np.nan, BEST_AT: "\u2013"}
     i = speed.idxmax()
     err = numeric_column(rows, "err_truth")[i]
+    apart = "timed_beside_ladder" in rows and flag(rows.loc[i, "timed_beside_ladder"]) is False
     return {BEST_SPEEDUP: float(speed[i]),
-            BEST_AT: f"{err:.3g} ({variant_labels(rows.loc[[i]]).iloc[0]}, {rows.loc[i, 'scenario']})"}
+            BEST_AT: f"{err:.3g} ({variant_labels(rows.loc[[i]]).iloc[0]}, {rows.loc[i, 'scenario']})"
+                     + ("; its ladder timed in another session" if apart else "")}
 
 
 def truth_summary(frame: pd.DataFrame) -> str:

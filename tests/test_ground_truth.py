@@ -13,11 +13,11 @@ import pandas as pd
 import pytest
 
 from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel, proj_rmse_rel
-from frictionbench.analysis.truth import certified_horizon, richardson
+from frictionbench.analysis.truth import certified_horizon, richardson, with_frontier
 from frictionbench.bench.cli import main
 from frictionbench.bench.compare import compare_results
 from frictionbench.bench.gates import BOUND_ONLY, NO_LADDER_COST, UNCERTIFIED, check, load_gates
-from frictionbench.bench.runner import Variant, run_suite
+from frictionbench.bench.runner import SESSION, Variant, run_suite
 from frictionbench.bench.variants import DT_HALF
 from frictionbench.bench.store import RunStore
 from frictionbench.scenarios.errors import ScenarioError
@@ -93,6 +93,9 @@ def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp
     assert ref["wall_s_per_sim_s"] == pytest.approx(sum(s["wall_s"] for s in stats["per_step"]) / 0.04)
     assert ref["speedup_equal_accuracy"] == pytest.approx(1.0)  # the reference lies on its own ladder
     assert (rows["integrator"] == "backward-euler").all()
+    # every run was timed in this session, the ladder's with the rest: each speed-up divides costs timed side by side
+    assert (rows["timed_in"] == SESSION).all() and all(store.load(k)[1]["timed_in"] == SESSION for k in rows["run"])
+    assert rows["timed_beside_ladder"].astype(bool).all()
     # a looser tolerance certifies at the first halving, from the stored runs (nothing is recomputed)
     stamps = {key: (store.folder(key) / "stats.json").stat().st_mtime_ns for key in ladder["run"]}
     rows = _ladder(tmp_path, truth_overrides={"tol": 0.5})
@@ -102,6 +105,25 @@ def test_the_ladder_gives_a_truth_err_truth_and_frontier_columns_and_resumes(tmp
     assert json.loads((out / "run.json").read_text())["truth"]["tol"] == 0.5
     rows = _ladder(tmp_path, with_truth=False)
     assert "err_truth" not in rows and "ladder" not in rows
+
+
+def test_a_speedup_says_whether_its_ladder_was_timed_in_its_session():
+    """`timed_beside_ladder`: True where the row's run and every ladder run of its scenario were timed in one
+    session, False where any was timed in another (a store resumed with a new variant), None where a run does not
+    say (stores from before sessions were recorded); the speed-up itself is computed the same either way."""
+    ladder = [{"scenario": "s", "solver": "full", "variant": f"ladder-bdf2-{k}", "ladder": "bdf2", "status": "ok",
+               "err_truth": err, "wall_s_per_sim_s": cost, "timed_in": "A"}
+              for k, (err, cost) in enumerate([(0.1, 10.0), (0.01, 40.0), (0.0, 80.0)])]
+    runs = [{"scenario": "s", "solver": "pod", "variant": v, "ladder": "", "status": "ok", "err_truth": 0.03,
+             "wall_s_per_sim_s": 0.5, "timed_in": t} for v, t in (("same", "A"), ("later", "B"), ("old", None))]
+    out = {r["variant"]: r for r in with_frontier(ladder + runs)}
+    assert out["same"]["timed_beside_ladder"] is True and out["later"]["timed_beside_ladder"] is False
+    assert out["old"]["timed_beside_ladder"] is None
+    assert out["same"]["speedup_equal_accuracy"] == out["later"]["speedup_equal_accuracy"] > 1.0
+    ladder[1]["timed_in"] = "B"  # a ladder timed over two sessions is beside neither
+    assert {r["variant"]: r["timed_beside_ladder"] for r in with_frontier(ladder + runs)}["later"] is False
+    ladder[1]["timed_in"] = float("nan")  # read back from a CSV without it
+    assert {r["variant"]: r["timed_beside_ladder"] for r in with_frontier(ladder + runs)}["same"] is None
 
 
 def _truth_rows(certified: bool, est: float) -> pd.DataFrame:

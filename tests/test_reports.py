@@ -288,6 +288,11 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     assert table.loc["licrom", BEST_SPEEDUP] == pytest.approx(30.0)
     assert table.loc["licrom", BEST_AT] in {"0.08 (licrom/r10, drop)", "0.08 (licrom/r10, slope)"}
     assert pd.isna(table.loc["pod", BEST_SPEEDUP]) and table.loc["pod", BEST_AT] == "\u2013"
+    # a best speed-up whose run and ladder were timed in different sessions (a resumed store) says so
+    moved = headline_table(frame.assign(timed_beside_ladder=frame["variant"] != "r10"), gates).set_index("solver")
+    assert moved.loc["licrom", BEST_AT].endswith("; its ladder timed in another session")
+    assert not headline_table(frame.assign(timed_beside_ladder=True), gates).set_index("solver").loc[
+        "licrom", BEST_AT].endswith("session")
     page = write_report_html(frame, tmp_path, gates=gates).read_text(encoding="utf-8")
     check_html(page)
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
