@@ -260,9 +260,9 @@ ADAPTIVE_COLUMNS = ("tol", "steps", "rejected_steps", "steps_over_tol", "dt_min_
 def run_timing(stats: dict, ref_stats: dict, dt: float) -> dict:
     """Timing and solver-health columns (Newton failures, line-search stalls, step retries, the linear solver that
     ran: `linear_solver` of a full-space run's stats; `timed_in`: the session that ran it, `bench.runner.SESSION`);
-    speedup = the reference's step time / this step time, both measured in this run; wall_s_per_sim_s = the steps' wall time per simulated second at time step dt [s], an
-    adaptive run's over the sum of its steps' sizes (warm-up, setup and training apart), whose rows also get
-    ADAPTIVE_COLUMNS."""
+    speedup = the reference's step time / this step time, both measured in this run; wall_s_per_sim_s = the steps'
+    wall time per simulated second at time step dt [s], an adaptive run's over the sum of its steps' sizes (warm-up,
+    setup and training apart), whose rows also get ADAPTIVE_COLUMNS."""
     keys = ("setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p95", "newton_iters_mean",
             "newton_iters_max", "not_converged", "line_search_stalls", "step_retries", "linear_solver", "timed_in")
     row = {k: stats.get(k) for k in keys}
