@@ -260,9 +260,9 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # range, and what it costs
     "rank-dynamics": lambda: [at_truth_step(v) for v in RANK_DYNAMICS],
     # those ranks on an optimised cubature, each three curves under BDF2 at dt, dt/2 and dt/4: contact lagged to the
-    # start of the step (the scene's own, and cheapest), corrected once at the first solve's end (two solves; second order
-    # where the step resolves contact) and to each step's fixed point (the truth ladders' settings) (issue 22; on demand; the
-    # truth-trained ones need a truth)
+    # start of the step (the scene's own, and cheapest), corrected once at the first solve's end (two solves; second
+    # order where the step resolves contact) and to each step's fixed point (the truth ladders' settings) (issue 22;
+    # on demand; the truth-trained ones need a truth)
     "pod-cubature": lambda: [level for v in POD_CUBATURE for lagged in (v, at_lag(v, "corrected"), at_fixed_point(v))
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
     # POD at r = 60 (between pod-cubature's ranks) and, at a looser Newton tolerance with the Hessian's products in

@@ -105,8 +105,8 @@ class Contact:
     barrier_stiffness: kappa [Pa], barrier stiffness per unit area.
     lag: where a step evaluates what contact lags (friction's normal pressure, the contact-damping gate): `start`
         (the start of the step, the paper's: first order in contact), `corrected` (one re-lagged solve at the first
-        solve's end state: second order where the step resolves contact) or `fixed-point` (lagged iterations to the step's own end state);
-        `solvers.step.ContactLag`.
+        solve's end state: second order where the step resolves contact) or `fixed-point` (lagged iterations to the
+        step's own end state); `solvers.step.ContactLag`.
     """
 
     law: str = "penalty"
