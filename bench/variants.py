@@ -181,7 +181,7 @@ def _pod_fast() -> list[Variant]:
     the paper-damped truth ladders' settings (BDF2, contact at each step's fixed point) at dt, dt/2 and dt/4, so that
     the looser tolerance is measured on both sides, and at the default tolerance (the truth ladder's levels again,
     measured beside the rest of the set rather than in whichever run built the ladder)."""
-    by_rank = [v for r in (36, 60, 84) for v in (POD_R60 if r == 60 else POD_CUBATURE) if v.params["r"] == r]
+    by_rank = sorted([*POD_CUBATURE, *POD_R60], key=lambda v: v.params["r"])
     full = [at_fixed_point(Variant("full", {"tol": tol}, label=label))
             for label, tol in (("tol1e-3", FAST["tol"]), ("tol1e-5", 1e-5))]
     return [level for v in (*POD_R60, *map(fast, by_rank), *full)

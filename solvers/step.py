@@ -90,6 +90,11 @@ class ContactLag:
         if self.mode not in CONTACT_LAGS:
             raise ValueError(f"contact.lag = {self.mode!r}: expected one of {list(CONTACT_LAGS)}")
 
+    @property
+    def max_solves(self) -> int:
+        """The most solves a step runs under this rule: 1 (`start`), 2 (`corrected`), LAG_MAX_SOLVES (`fixed-point`)."""
+        return {"start": 1, "corrected": 2}.get(self.mode, LAG_MAX_SOLVES)
+
 
 class LaggedStep(Protocol):
     """What `solve_lagged` needs of a backend's step: set the step's lagged quantities from lag coordinates and
@@ -136,11 +141,10 @@ def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
     (a `fixed-point` step: 1 where it stopped at LAG_MAX_SOLVES)."""
     key = step.relag(y, v)
     res = step.newton(None)
-    if lag.mode == "start":
+    if lag.max_solves == 1:
         return res, {}
-    cap = 2 if lag.mode == "corrected" else LAG_MAX_SOLVES
     solves, unconverged = 1, 1
-    while solves < cap:
+    while solves < lag.max_solves:
         new_key = step.relag(res.y, step.velocity(res.y))
         if all(_same(a, b) for a, b in zip(key, new_key)):
             unconverged = 0
@@ -152,9 +156,7 @@ def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
         if again.iters == 1 and again.converged:
             unconverged = 0
             break
-    if lag.mode == "corrected":
-        return res, {"lag_solves": solves}
-    return res, {"lag_solves": solves, "lag_unconverged": unconverged}
+    return res, {"lag_solves": solves} | ({"lag_unconverged": unconverged} if lag.mode == "fixed-point" else {})
 
 
 def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
