@@ -18,8 +18,9 @@ The reduced step (`--reduced`, one thread): a basis of `--r` columns, the 12 aff
 full-space frames that led to the mid-contact state (`solvers.baselines.pod_basis`: no network to train, the
 same r as the trained LiCROM variants), and `--cubature` optimised cubature tets on those frames; the projected
 mid-contact state steps `--reduced-steps` steps after a warm-up step in each reduced configuration, `all-points`
-(the point terms at every contact sample point) and `candidates` (at the candidate points only,
-`ReducedSolver._candidates`), the configurations interleaved step by step and each step the fastest of
+(the point terms at every contact sample point), `candidates` (at the candidate points only,
+`ReducedSolver._candidates`) and `step-hessian` (candidates, and the body terms' Hessian evaluated once a step:
+`hessian_refresh = "step"`), the configurations interleaved step by step and each step the fastest of
 `--repeats` runs from the same state (a step is deterministic), so that a shared machine's load moves the ratio
 less. Parts, exclusive (a part's time leaves out the timed parts called inside it):
 body (the body terms: the cubature tets' elasticity and viscosity, energy, stress and Hessian pulled back to
@@ -56,7 +57,7 @@ from frictionbench.solvers.model import Model, State, build_model, initial_state
 CASES = ["paper/cheese_p1_mu0.5", "paper/sphere_p1_mu0.5", "hard/E1e9"]
 CONFIGS = ["superlu:1", "pardiso:1", "pardiso:2"]
 PARTS = ("assembly", "factorisation", "solve", "line_search")
-REDUCED = ["all-points", "candidates"]
+REDUCED = ["all-points", "candidates", "step-hessian"]
 REDUCED_PARTS = ("body", "points", "reduction", "linear_solve", "line_search", "basis")
 
 
@@ -165,7 +166,8 @@ class _ReducedRun:
         if mode not in REDUCED:
             raise ValueError(f"reduced configuration {mode!r}: expected one of {REDUCED}")
         self.mode, self.dt = mode, model.scenario.time.dt
-        self.solver = solver = ReducedSolver(model, W, cub, contact_candidates=mode == "candidates")
+        self.solver = solver = ReducedSolver(model, W, cub, contact_candidates=mode != "all-points",
+                                             hessian_refresh="step" if mode == "step-hessian" else "iteration")
         self.state = solver.project(state)
         solver.step(self.state, State(self.state.x, self.state.v, self.state.t), self.dt)  # warm-up (kernels)
         self.clock, self.counts = _Clock(), []

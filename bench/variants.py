@@ -163,28 +163,30 @@ POD_R60 = [Variant("pod", {"r": 60, "affine": True, "cubature": "optimized:150"}
 
 #: The `pod-fast` points' solver settings: Newton's tolerance of the full-space `tol1e-3` sweep (1e-3 L/s, where the
 #: default is 1e-5) and the reduced Hessian's dense products in single precision (`solvers.licrom.reduced`,
-#: `HESSIAN_PRECISIONS`).
+#: `HESSIAN_PRECISIONS`); and with them, the body terms' Hessian evaluated once a step (`HESSIAN_REFRESHES`).
 FAST = {"tol": 1e-3, "hessian": "single"}
+FAST_STEP = FAST | {"hessian_refresh": "step"}
 
 
-def fast(variant: Variant) -> Variant:
-    """The variant at the `FAST` settings, on its trained model (neither setting is a training parameter); labelled
-    `<label>-tol1e-3-single`."""
-    return replace(variant, label=f"{variant.label}-tol1e-3-single", params=variant.params | FAST,
+def fast(variant: Variant, settings: dict = FAST) -> Variant:
+    """The variant at the `FAST` settings, or at `FAST_STEP`'s, on its trained model (no setting is a training
+    parameter); labelled `<label>-tol1e-3-single`, and `-step` after it for `FAST_STEP`."""
+    tag = "-tol1e-3-single" + ("-step" if settings.get("hessian_refresh") == "step" else "")
+    return replace(variant, label=f"{variant.label}{tag}", params=variant.params | settings,
                    model=variant.model or variant.label)
 
 
 def _pod_fast() -> list[Variant]:
     """The `pod-fast` set: under BDF2 with the start lag at dt, dt/2 and dt/4, POD at r = 60 on 150 tets at the
     default settings (r = 36 and 84 at them are `pod-cubature`'s), and at r = 36, 60 and 84 (on 90, 150 and 210 tets)
-    at `FAST`'s, each fitted to the truths and to the references; and the full-space solver at FAST's tolerance on
-    the paper-damped truth ladders' settings (BDF2, contact at each step's fixed point) at dt, dt/2 and dt/4, so that
-    the looser tolerance is measured on both sides, and at the default tolerance (the truth ladder's levels again,
-    measured beside the rest of the set rather than in whichever run built the ladder)."""
+    at `FAST`'s and at `FAST_STEP`'s, each fitted to the truths and to the references; and the full-space solver at
+    FAST's tolerance on the paper-damped truth ladders' settings (BDF2, contact at each step's fixed point) at dt,
+    dt/2 and dt/4, so that the looser tolerance is measured on both sides, and at the default tolerance (the truth
+    ladder's levels again, measured beside the rest of the set rather than in whichever run built the ladder)."""
     by_rank = sorted([*POD_CUBATURE, *POD_R60], key=lambda v: v.params["r"])
     full = [at_fixed_point(Variant("full", {"tol": tol}, label=label))
             for label, tol in (("tol1e-3", FAST["tol"]), ("tol1e-5", 1e-5))]
-    return [level for v in (*POD_R60, *map(fast, by_rank), *full)
+    return [level for v in (*POD_R60, *map(fast, by_rank), *(fast(v, FAST_STEP) for v in by_rank), *full)
             for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",))]
 
 
@@ -266,7 +268,8 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     "pod-cubature": lambda: [level for v in POD_CUBATURE for lagged in (v, at_lag(v, "corrected"), at_fixed_point(v))
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
     # POD at r = 60 (between pod-cubature's ranks) and, at a looser Newton tolerance with the Hessian's products in
-    # single precision, at r = 36, 60 and 84, each a curve at dt, dt/2 and dt/4; the full-space solver at the looser
+    # single precision (and with the body's Hessian once a step as well), at r = 36, 60 and 84, each a curve at dt,
+    # dt/2 and dt/4; the full-space solver at the looser
     # tolerance and at the default on the truth ladders' settings (issue 22's 100x; on demand; the truth-trained ones
     # need a truth)
     "pod-fast": _pod_fast,

@@ -204,11 +204,12 @@ def test_the_frontier_joins_each_curve_per_scenario_in_its_points_colour_and_the
 
 def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     """`pod-fast`: POD at r = 60 on 150 tets at the defaults; r = 36, 60, 84 at tol 1e-3 with a single-precision
-    Hessian on the models of their default twins (no training of their own); the full-space solver at the same
-    tolerance on the truth ladders' settings. Each a curve at dt, dt/2, dt/4 under BDF2."""
+    Hessian, with and without the body's Hessian once a step, on the models of their default twins (no training
+    of their own); the full-space solver at the same tolerance on the truth ladders' settings. Each a curve at dt,
+    dt/2, dt/4 under BDF2."""
     sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
     fast = variant_set("pod-fast")
-    assert len(fast) == 30 and len({v.label for v in fast}) == 30
+    assert len(fast) == 48 and len({v.label for v in fast}) == 48
     pod = [v for v in fast if v.solver == "pod"]
     full = [v for v in fast if v.solver == "full"]
     assert {(v.params["r"], v.params["cubature"]) for v in pod} == {(36, "optimized:90"), (60, "optimized:150"),
@@ -216,9 +217,11 @@ def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     for v in pod:
         quick = v.params.get("tol") == 1e-3
         assert quick == ("-tol1e-3-single-" in v.label) == (v.params.get("hessian") == "single")
+        assert ("-single-step-" in v.label) == (v.params.get("hessian_refresh") == "step") <= quick
         assert v.model == f"pod-affine-r{v.params['r']}-cub{v.params['cubature'].split(':')[1]}" + (
             "-truthdata" if v.training == "truth" else "")
         assert quick or v.params["r"] == 60
+    assert sum(v.params.get("hessian_refresh") == "step" for v in pod) == 18  # 3 ranks, 2 fits, 3 steps
     assert len(full) == 6 and sorted(v.params["tol"] for v in full) == [1e-5] * 3 + [1e-3] * 3
     assert NewtonSettings.tol == 1e-5  # the tol1e-5 levels are the truth ladder's own settings
     for v in fast:

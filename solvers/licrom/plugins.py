@@ -67,7 +67,8 @@ class _Reduced(Solver):
     `projected_gradient`), seed; iterations: None (iterate to convergence) or, with the projected gradient, a fixed
     count per step with no convergence test; velocity_scale: the latent velocity's factor before each step (1: none);
     tol: Newton's tolerance [1/s, relative to L] (the full-space solver's measure and default); hessian: "double" or
-    "single", the precision of the Hessian's dense products (`solvers.licrom.reduced.HESSIAN_PRECISIONS`).
+    "single", the precision of the Hessian's dense products (`solvers.licrom.reduced.HESSIAN_PRECISIONS`);
+    hessian_refresh: "iteration" or "step", when the body terms' Hessian is evaluated (`HESSIAN_REFRESHES` there).
     LiCROM's released integrator is the projected gradient at 3 iterations and 0.99 (`bench.variants`,
     `licrom-released`). Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with either
     scheme."""
@@ -88,7 +89,8 @@ class _Reduced(Solver):
             check_count(self.name, "iterations", p["iterations"])
         solver = ReducedSolver(model, W, cub, scheme=p["scheme"], device=self.device, seed=p["seed"],
                                name=self.name, fixed_iterations=fixed, velocity_scale=float(p["velocity_scale"]),
-                               tol=p["tol"], hessian=p["hessian"], **({"max_iter": p["iterations"]} if fixed else {}))
+                               tol=p["tol"], hessian=p["hessian"], hessian_refresh=p["hessian_refresh"],
+                               **({"max_iter": p["iterations"]} if fixed else {}))
         self.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0]))}
         if p["scheme"] == "projected_gradient":
             # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
@@ -114,7 +116,7 @@ class _Reduced(Solver):
 
 
 _COMMON = {"cubature": "all", "scheme": "newton", "seed": 0, "iterations": None, "velocity_scale": 1.0, "tol": 1e-5,
-           "hessian": "double"}
+           "hessian": "double", "hessian_refresh": "iteration"}
 
 
 # ----- affine ------------------------------------------------------------------------------------------------
