@@ -91,7 +91,9 @@ point terms' and the inertia's Hessians stay exact at every iteration, and the g
 step stops, is exact either way: within a step the body's strain changes little, so the kept part is close to the
 current one. It drops the kernels' Hessian factors and the dense pull-back from all but one evaluation a step,
 which were two thirds of a step at r = 60 on 150 tets (measured on the coarse sphere: 1.8x less time a step, the
-same Newton iterations, positions within 5e-8 of L; docs/figures.md)."""
+same Newton iterations, positions within 5e-8 of L; `pod-fast` runs 1.5-1.6x cheaper in the median, err_truth the
+same to 1.5e-4 of itself; docs/figures.md). The kept part turns with the body, so a body spinning fast within a
+step at a tight tolerance takes more iterations (the method converges linearly)."""
 
 CANDIDATE_MARGIN = 1e-9
 """Round-off allowance of the contact candidates' test, relative to the body size L: a point is a candidate when
