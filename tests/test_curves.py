@@ -205,11 +205,11 @@ def test_the_frontier_joins_each_curve_per_scenario_in_its_points_colour_and_the
 def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     """`pod-fast`: POD at r = 60 on 150 tets at the defaults; r = 36, 60, 84 at tol 1e-3 with a single-precision
     Hessian, with and without the body's Hessian once a step, on the models of their default twins (no training
-    of their own); the full-space solver at the same tolerance on the truth ladders' settings. Each a curve at dt,
-    dt/2, dt/4 under BDF2."""
+    of their own), r = 84 fitted to the truths with both at the fixed point; the full-space solver at the same
+    tolerance on the truth ladders' settings. Each a curve at dt, dt/2, dt/4 under BDF2."""
     sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
     fast = variant_set("pod-fast")
-    assert len(fast) == 48 and len({v.label for v in fast}) == 48
+    assert len(fast) == 51 and len({v.label for v in fast}) == 51
     pod = [v for v in fast if v.solver == "pod"]
     full = [v for v in fast if v.solver == "full"]
     assert {(v.params["r"], v.params["cubature"]) for v in pod} == {(36, "optimized:90"), (60, "optimized:150"),
@@ -221,11 +221,14 @@ def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
         assert v.model == f"pod-affine-r{v.params['r']}-cub{v.params['cubature'].split(':')[1]}" + (
             "-truthdata" if v.training == "truth" else "")
         assert quick or v.params["r"] == 60
-    assert sum(v.params.get("hessian_refresh") == "step" for v in pod) == 18  # 3 ranks, 2 fits, 3 steps
+    assert sum(v.params.get("hessian_refresh") == "step" for v in pod) == 21  # 3 ranks, 2 fits, 3 steps; r = 84
+    fixed = [v for v in pod if "-fixed-point" in v.label]
+    assert len(fixed) == 3 and all(v.params["r"] == 84 and v.params["hessian_refresh"] == "step" and v.model ==
+                                   "pod-affine-r84-cub210-truthdata" for v in fixed)
     assert len(full) == 6 and sorted(v.params["tol"] for v in full) == [1e-5] * 3 + [1e-3] * 3
     assert NewtonSettings.tol == 1e-5  # the tol1e-5 levels are the truth ladder's own settings
     for v in fast:
         level = v.scenario(sc)
         assert level.time.integrator == "bdf2"
-        assert level.contact.lag == ("fixed-point" if v.solver == "full" else "start")
+        assert level.contact.lag == ("fixed-point" if v.solver == "full" or "-fixed-point" in v.label else "start")
     assert sorted(v.scenario(sc).time.dt for v in full) == pytest.approx([0.0025] * 2 + [0.005] * 2 + [0.01] * 2)
