@@ -181,15 +181,15 @@ def _pod_fast() -> list[Variant]:
     default settings (r = 36 and 84 at them are `pod-cubature`'s), and at r = 36, 60 and 84 (on 90, 150 and 210 tets)
     at `FAST`'s and at `FAST_STEP`'s, each fitted to the truths and to the references; r = 84 fitted to the truths at
     `FAST_STEP`'s with contact at each step's fixed point (where the frictional members are accurate, its several
-    solves a step sharing one body Hessian); and the full-space solver at
-    FAST's tolerance on the paper-damped truth ladders' settings (BDF2, contact at each step's fixed point) at dt,
-    dt/2 and dt/4, so that the looser tolerance is measured on both sides, and at the default tolerance (the truth
-    ladder's levels again, measured beside the rest of the set rather than in whichever run built the ladder)."""
+    solves a step sharing one body Hessian); and the full-space solver at FAST's tolerance on the paper-damped truth
+    ladders' settings (BDF2, contact at each step's fixed point) at dt, dt/2 and dt/4, so that the looser tolerance
+    is measured on both sides, and at the default tolerance (the truth ladder's levels again, measured beside the
+    rest of the set rather than in whichever run built the ladder)."""
     by_rank = sorted([*POD_CUBATURE, *POD_R60], key=lambda v: v.params["r"])
     full = [at_fixed_point(Variant("full", {"tol": tol}, label=label))
             for label, tol in (("tol1e-3", FAST["tol"]), ("tol1e-5", 1e-5))]
-    fixed_point = [at_fixed_point(fast(v, FAST_STEP)) for v in POD_CUBATURE if v.params["r"] == 84
-                   and v.training == "truth"]
+    fixed_point = [at_fixed_point(fast(v, FAST_STEP)) for v in POD_CUBATURE
+                   if v.params["r"] == 84 and v.training == "truth"]
     return [level for v in (*POD_R60, *map(fast, by_rank), *(fast(v, FAST_STEP) for v in by_rank), *fixed_point,
                             *full)
             for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",))]
@@ -274,9 +274,8 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
     # POD at r = 60 (between pod-cubature's ranks) and, at a looser Newton tolerance with the Hessian's products in
     # single precision (and with the body's Hessian once a step as well), at r = 36, 60 and 84, each a curve at dt,
-    # dt/2 and dt/4; the full-space solver at the looser
-    # tolerance and at the default on the truth ladders' settings (issue 22's 100x; on demand; the truth-trained ones
-    # need a truth)
+    # dt/2 and dt/4 (r = 84 also at the fixed point); the full-space solver at the looser tolerance and at the
+    # default on the truth ladders' settings (issue 22's 100x; on demand; the truth-trained ones need a truth)
     "pod-fast": _pod_fast,
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
     # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start
