@@ -30,7 +30,7 @@ import numpy as np
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import load_mesh
 from frictionbench.scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import affine_basis, standardised_positions
+from frictionbench.solvers.baselines import smooth_basis
 from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.licrom.reduced import HESSIAN_REFRESHES, ReducedSolver
 from frictionbench.solvers.licrom.terms import ReferenceEvaluation
@@ -84,14 +84,11 @@ def spinning_block() -> Scenario:
 
 
 def check_run(device: str, r: int = 24, seed: int = 0) -> list[dict]:
-    """The spinning block on a smooth basis of r columns (the affine fields and r - 12 smooth fields), its body terms
+    """The spinning block on a smooth basis of r columns (`solvers.baselines.smooth_basis`), its body terms
     by the numpy references (the Hessian every iteration), then by the device's kernels under each
     `HESSIAN_REFRESHES`, each compared with the first (module doc)."""
     model = build_model(spinning_block(), load_mesh(MeshSpec("block", "coarse")))
-    x, y, z = standardised_positions(model.X).T
-    feats = np.stack([x * x, y * y, z * z, x * y, y * z, x * z, x * y * z, np.sin(2 * x), np.cos(2 * y)], axis=1)
-    extra = np.einsum("nf,fak->nak", feats, np.random.default_rng(seed).standard_normal((feats.shape[1], 3, r - 12)))
-    W = 0.002 * model.L * np.concatenate([affine_basis(model.X), extra], axis=2)
+    W = smooth_basis(model.X, r, 0.002 * model.L, seed)
     records, reference = [], None
     for how, refresh in (("reference", "iteration"), *((device, h) for h in HESSIAN_REFRESHES)):
         solver = ReducedSolver(model, W, device=device, hessian_refresh=refresh, tol=1e-9)

@@ -69,6 +69,17 @@ def project(W: np.ndarray, u: np.ndarray, mass: np.ndarray | None = None) -> np.
     return q[0] if u.ndim == 2 else q
 
 
+def smooth_basis(X: np.ndarray, r: int, scale: float, seed: int = 0) -> np.ndarray:
+    """The 12 affine fields and r - 12 random smooth fields (quadratic, cubic and trigonometric in the standardised
+    rest positions, `seed` fixing their mix) scaled by `scale` [m], (n, 3, r): a basis with no training behind it,
+    for checks of the reduced machinery (the device check, the tests)."""
+    rng = np.random.default_rng(seed)
+    x, y, z = standardised_positions(X).T
+    feats = np.stack([x * x, y * y, z * z, x * y, y * z, x * z, x * y * z, np.sin(2 * x), np.cos(2 * y)], axis=1)
+    extra = np.einsum("nf,fak->nak", feats, rng.standard_normal((feats.shape[1], 3, r - 12)))
+    return scale * np.concatenate([affine_basis(X), extra], axis=2)
+
+
 def full_basis(n: int) -> np.ndarray:
     """The complete per-vertex basis W (n, 3, 3n): W[i, a, 3 i + a] = 1, so q is the flattened displacement."""
     return np.eye(3 * n).reshape(n, 3, 3 * n)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import affine_basis, full_basis, pod_basis, standardised_positions
+from frictionbench.solvers.baselines import affine_basis, full_basis, pod_basis, smooth_basis
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.licrom.cubature import cubature_force_error, optimized_cubature, uniform_cubature
@@ -28,15 +28,6 @@ from scenes import G, com_series, free_flight, incline
 def simulate_reduced(model, solver):
     """simulate from the initial state projected to the solver's subspace (so that frame 0 has its q too)."""
     return simulate(model, solver, solver.project(initial_state(model)))
-
-
-def smooth_basis(X: np.ndarray, r: int, scale: float, seed: int = 0) -> np.ndarray:
-    """Affine fields plus r - 12 random smooth (quadratic, cubic, trigonometric) fields scaled by `scale` [m]."""
-    rng = np.random.default_rng(seed)
-    x, y, z = standardised_positions(X).T
-    feats = np.stack([x * x, y * y, z * z, x * y, y * z, x * z, x * y * z, np.sin(2 * x), np.cos(2 * y)], axis=1)
-    extra = np.einsum("nf,fak->nak", feats, rng.standard_normal((feats.shape[1], 3, r - 12)))
-    return scale * np.concatenate([affine_basis(X), extra], axis=2)
 
 
 def downhill(theta_deg: float) -> np.ndarray:
