@@ -1,0 +1,49 @@
+"""The recorded relaunch of a CPU kernel (`solvers.warp_runtime.RecordedLaunch`): its argument structure built once
+and the compiled kernel called on it gives what warp's own launch gives, bit for bit, and follows every change of a
+scalar argument and of the launch size."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+from frictionbench.solvers import warp_runtime
+from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
+
+init_warp()
+
+
+@wp.kernel
+def _affine(x: wp.array(dtype=wp.float64), a: wp.float64, b: wp.float64, out: wp.array(dtype=wp.float64)):
+    i = wp.tid()
+    out[i] = wp.sin(a * x[i]) + b * x[i] * x[i]
+
+
+def _warp_launch(x: np.ndarray, a: float, b: float, n: int) -> np.ndarray:
+    """The kernel launched by warp itself on the first n entries of x, into a fresh zero output."""
+    out = wp.zeros(x.size, dtype=wp.float64, device="cpu")
+    wp.launch(_affine, n, inputs=[wp.array(x, dtype=wp.float64, device="cpu"), a, b, out], device="cpu")
+    return out.numpy()
+
+
+@pytest.mark.parametrize("packed", [True, False], ids=["built-once", "warp-relaunch"])
+def test_a_relaunch_matches_warps_launch_bit_for_bit_through_every_change(monkeypatch, packed: bool) -> None:
+    if not packed:
+        monkeypatch.setattr(warp_runtime, "_build_cpu_args_structs", None)
+    elif warp_runtime._build_cpu_args_structs is None:
+        pytest.fail("this warp has no _build_cpu_args_structs: the CPU relaunch falls back to warp's")
+    x = np.random.default_rng(3).uniform(-2.0, 2.0, 37)
+    xa = wp.array(x, dtype=wp.float64, device="cpu")
+    out = wp.zeros(x.size, dtype=wp.float64, device="cpu")
+    launch = RecordedLaunch(_affine, x.size, [xa, 1.0, 0.0, out], "cpu")
+    view = out.numpy()
+    for a, b, n in [(1.0, 0.0, 37), (0.7, 0.0, 37), (0.7, -1.3, 37), (0.7, -1.3, 11), (2.5, 0.25, 11), (2.5, 0.25, 37)]:
+        launch.set(1, a)
+        launch.set(2, b)
+        view[:] = 0.0
+        launch.launch(n)
+        expected = _warp_launch(x, a, b, n)
+        assert np.array_equal(view, expected), (a, b, n)
+        assert np.count_nonzero(view[n:]) == 0  # the size is followed: nothing written past n
+    assert (launch._packed is not None) == packed
