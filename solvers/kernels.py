@@ -120,12 +120,108 @@ def elastic_gradient_kernel(
         wp.atomic_add(grad, tet[a], vol[e] * (P * shape_gradient(Dmi, a)))
 
 
+#: Jacobi sweeps of `sym_eig3` at most; it stops once the off-diagonal part is at round-off (EIG_OFF_TOL), which
+#: takes 3-5 sweeps (quadratic convergence); the cap only bounds a non-finite input.
+EIG_MAX_SWEEPS = wp.constant(12)
+#: `sym_eig3` stops when the off-diagonal entries' squares sum to at most this share of the diagonal's: each is then
+#: below 1e-17 of the largest diagonal entry, under double precision's round-off of it.
+EIG_OFF_TOL = wp.constant(1.0e-34)
+
+
+@wp.func
+def sym_eig3(A: wp.mat33d):
+    """The eigenvectors (columns of Q, orthonormal) and eigenvalues lam of a symmetric 3x3 A, A = Q diag(lam) Q^T,
+    by cyclic Jacobi rotations (each zeroes one off-diagonal pair exactly; Golub and Van Loan's symmetric Schur
+    step), in no particular order. Backward stable: Q is orthonormal and Q diag(lam) Q^T is A to round-off of |A|;
+    half the cost of warp's `eig3` and `svd3` (fixed sweeps of approximate rotations) on these 3x3 matrices, and
+    closer to A (tests/test_kernel_linalg.py)."""
+    D = A
+    Q = wp.identity(n=3, dtype=f64)
+    for _sweep in range(EIG_MAX_SWEEPS):
+        off = D[0, 1] * D[0, 1] + D[0, 2] * D[0, 2] + D[1, 2] * D[1, 2]
+        if not (off > f64(EIG_OFF_TOL) * (D[0, 0] * D[0, 0] + D[1, 1] * D[1, 1] + D[2, 2] * D[2, 2])):
+            break
+        for pair in range(3):
+            p = pair // 2  # pairs (0, 1), (0, 2), (1, 2)
+            q = 1 + (pair + 1) // 2
+            dpq = D[p, q]
+            if dpq != f64(0.0):
+                theta = (D[q, q] - D[p, p]) / (f64(2.0) * dpq)
+                t = f64(1.0) / (wp.abs(theta) + wp.sqrt(theta * theta + f64(1.0)))
+                if theta < f64(0.0):
+                    t = -t
+                c = f64(1.0) / wp.sqrt(t * t + f64(1.0))
+                sn = t * c
+                r = 3 - p - q
+                drp = D[r, p]
+                drq = D[r, q]
+                D[p, p] = D[p, p] - t * dpq
+                D[q, q] = D[q, q] + t * dpq
+                D[p, q] = f64(0.0)
+                D[q, p] = f64(0.0)
+                D[r, p] = c * drp - sn * drq
+                D[p, r] = D[r, p]
+                D[r, q] = sn * drp + c * drq
+                D[q, r] = D[r, q]
+                for i in range(3):
+                    qip = Q[i, p]
+                    qiq = Q[i, q]
+                    Q[i, p] = c * qip - sn * qiq
+                    Q[i, q] = sn * qip + c * qiq
+    return Q, wp.vec3d(D[0, 0], D[1, 1], D[2, 2])
+
+
+@wp.func
+def svd3_rotations(F: wp.mat33d):
+    """The rotation-variant SVD F = U diag(s) V^T with U and V rotations (det +1), s[0] >= s[1] >= |s[2]| (to
+    round-off) and s[2] negative where det F < 0 (an inverted element): V from the eigenvectors of F^T F
+    (`sym_eig3`, sorted), then U and s from the columns of F V by Gram-Schmidt, u2 = u0 x u1 and s2 = u2 . (F v2),
+    as a QR factorisation of F V would give them; a zero or rank-one F gets an arbitrary orthonormal completion.
+    F = U diag(s) V^T to round-off of |F|, small singular values to round-off of |F| (not of F^T F)."""
+    C, d = sym_eig3(wp.transpose(F) * F)
+    V = C
+    for k in range(2):  # sort the eigenpairs by decreasing eigenvalue (three compare-and-swaps)
+        for j in range(2 - k):
+            if d[j] < d[j + 1]:
+                dj = d[j]
+                d[j] = d[j + 1]
+                d[j + 1] = dj
+                for i in range(3):
+                    vij = V[i, j]
+                    V[i, j] = V[i, j + 1]
+                    V[i, j + 1] = vij
+    if wp.determinant(V) < f64(0.0):
+        for i in range(3):
+            V[i, 2] = -V[i, 2]
+    B = F * V
+    b0 = wp.vec3d(B[0, 0], B[1, 0], B[2, 0])
+    b1 = wp.vec3d(B[0, 1], B[1, 1], B[2, 1])
+    b2 = wp.vec3d(B[0, 2], B[1, 2], B[2, 2])
+    s0 = wp.length(b0)
+    u0 = wp.vec3d(f64(1.0), f64(0.0), f64(0.0))
+    if s0 > f64(0.0):
+        u0 = b0 / s0
+    w1 = b1 - wp.dot(u0, b1) * u0
+    s1 = wp.length(w1)
+    u1 = wp.vec3d()
+    if s1 > f64(0.0):
+        u1 = w1 / s1
+    else:  # F of rank one or zero: any unit vector orthogonal to u0
+        a = wp.vec3d(f64(1.0), f64(0.0), f64(0.0))
+        if wp.abs(u0[0]) > f64(0.5):
+            a = wp.vec3d(f64(0.0), f64(1.0), f64(0.0))
+        u1 = wp.normalize(a - wp.dot(u0, a) * u0)
+    u2 = wp.cross(u0, u1)
+    U = wp.mat33d(u0[0], u1[0], u2[0], u0[1], u1[1], u2[1], u0[2], u1[2], u2[2])
+    return U, wp.vec3d(s0, s1, wp.dot(u2, b2)), V
+
+
 @wp.func
 def scaling_factor(A: wp.mat33d):
     """A factor Qs and weights ls of the PSD part A_+ of a symmetric 3x3 A, A_+ = sum_m ls[m] q_m q_m^T with q_m the
     columns of Qs: where A is positive definite (its Cholesky pivots all positive), A's Cholesky factor L (A = L L^T)
-    with unit weights, which costs a tenth of an eigendecomposition; else its eigenvectors and eigenvalues (`eig3`),
-    the negative ones to be dropped by the caller."""
+    with unit weights, which costs a tenth of an eigendecomposition; else its eigenvectors and eigenvalues
+    (`sym_eig3`), the negative ones to be dropped by the caller."""
     Qs = wp.mat33d()
     ls = wp.vec3d(f64(1.0), f64(1.0), f64(1.0))
     pd = False
@@ -142,15 +238,14 @@ def scaling_factor(A: wp.mat33d):
                 Qs[2, 2] = wp.sqrt(d2)
                 pd = True
     if not pd:
-        Qs = wp.mat33d()
-        wp.eig3(A, Qs, ls)
+        Qs, ls = sym_eig3(A)
     return Qs, ls
 
 
 @wp.func
 def snh_eigensystem(F: wp.mat33d, mu: f64, lam: f64, alpha: f64):
     """The analytic eigensystem of the SNH dP/dF (9x9) at F, in the rotation-variant SVD F = U diag(s) V^T
-    (det U = det V = 1): returns (U, s, V, Qs, ls, ca, cc) for `snh_mode`.
+    (det U = det V = 1, `svd3_rotations`): returns (U, s, V, Qs, ls, ca, cc) for `snh_mode`.
 
     dP/dF = a I + b f f^T + d g g^T + c d2J/dF2 with a = mu (1 - 1/(I_C+1)), b = 2 mu/(I_C+1)^2, c = lam (J -
     alpha), d = lam, f = vec F, g = vec cof F. Its eigen-matrices are, per index pair (i, j) with k the third, a
@@ -160,16 +255,7 @@ def snh_eigensystem(F: wp.mat33d, mu: f64, lam: f64, alpha: f64):
     ls their weights (A's eigenvectors and eigenvalues, or where A is positive definite its Cholesky factor's
     columns with weight 1: the same block, A_+ = A); ca = a, cc = c.
     """
-    U = wp.mat33d()
-    s = wp.vec3d()
-    V = wp.mat33d()
-    wp.svd3(F, U, s, V)
-    if wp.determinant(U) < f64(0.0):
-        U = U * wp.mat33d(f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(-1.0))
-        s = wp.vec3d(s[0], s[1], -s[2])
-    if wp.determinant(V) < f64(0.0):
-        V = V * wp.mat33d(f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(1.0), f64(0.0), f64(0.0), f64(0.0), f64(-1.0))
-        s = wp.vec3d(s[0], s[1], -s[2])
+    U, s, V = svd3_rotations(F)
     ic = s[0] * s[0] + s[1] * s[1] + s[2] * s[2]
     J = s[0] * s[1] * s[2]
     ca = mu * (f64(1.0) - f64(1.0) / (ic + f64(1.0)))
@@ -472,9 +558,7 @@ def viscous_hessian_kernel(
     F = deformation_gradient(x, tet, Dmi)
     A = strain_change(F, E_bar[e])
     c = vol[e] * eta_over_h
-    Q = wp.mat33d()
-    lam = wp.vec3d()
-    wp.eig3(A, Q, lam)
+    Q, lam = sym_eig3(A)
     Ap = Q * wp.diag(wp.vec3d(wp.max(lam[0], f64(0.0)), wp.max(lam[1], f64(0.0)), wp.max(lam[2], f64(0.0)))) * (
         wp.transpose(Q))
     FFt = F * wp.transpose(F)

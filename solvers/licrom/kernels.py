@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from frictionbench.solvers.kernels import cofactor, green_strain, snh_eigensystem, snh_mode, snh_psi
+from frictionbench.solvers.kernels import cofactor, green_strain, snh_eigensystem, snh_mode, snh_psi, sym_eig3
 from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
 
 f64 = wp.float64
@@ -104,9 +104,7 @@ def viscous_kernel(F: wp.array(dtype=wp.mat33d), F_bar: wp.array(dtype=wp.mat33d
                     if k == j:
                         v += f64(0.5) * Fm[i, l]
                     out[e, 10 + 9 * p + 3 * i + k] = w * v
-        Q = wp.mat33d()
-        lam = wp.vec3d()
-        wp.eig3(A, Q, lam)
+        Q, lam = sym_eig3(A)
         for m in range(3):
             w = wp.sqrt(f64(2.0) * c * wp.max(lam[m], f64(0.0)))
             for i0 in range(3):
