@@ -178,8 +178,7 @@ def svd3_rotations(F: wp.mat33d):
     (`sym_eig3`, sorted), then U and s from the columns of F V by Gram-Schmidt, u2 = u0 x u1 and s2 = u2 . (F v2),
     as a QR factorisation of F V would give them; a zero or rank-one F gets an arbitrary orthonormal completion.
     F = U diag(s) V^T to round-off of |F|, small singular values to round-off of |F| (not of F^T F)."""
-    C, d = sym_eig3(wp.transpose(F) * F)
-    V = C
+    V, d = sym_eig3(wp.transpose(F) * F)
     for k in range(2):  # sort the eigenpairs by decreasing eigenvalue (three compare-and-swaps)
         for j in range(2 - k):
             if d[j] < d[j + 1]:
