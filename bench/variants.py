@@ -181,18 +181,23 @@ def _pod_fast() -> list[Variant]:
     default settings (r = 36 and 84 at them are `pod-cubature`'s), and at r = 36, 60 and 84 (on 90, 150 and 210 tets)
     at `FAST`'s and at `FAST_STEP`'s, each fitted to the truths and to the references; r = 84 fitted to the truths at
     `FAST_STEP`'s with contact at each step's fixed point (where the frictional members are accurate, its several
-    solves a step sharing one body Hessian); and the full-space solver at FAST's tolerance on the paper-damped truth
-    ladders' settings (BDF2, contact at each step's fixed point) at dt, dt/2 and dt/4, so that the looser tolerance
-    is measured on both sides, and at the default tolerance (the truth ladder's levels again, measured beside the
-    rest of the set rather than in whichever run built the ladder)."""
+    solves a step sharing one body Hessian); the two r = 84 truth-fitted `FAST_STEP` curves again on every tet, their
+    twins (the same subspace: where a curve flattens, whether its cubature floors it, `analysis.curves`); and the
+    full-space solver at FAST's tolerance on the paper-damped truth ladders' settings (BDF2, contact at each step's
+    fixed point) at dt, dt/2 and dt/4, so that the looser tolerance is measured on both sides, and at the default
+    tolerance (the truth ladder's levels again, measured beside the rest of the set rather than in whichever run
+    built the ladder)."""
     by_rank = sorted([*POD_CUBATURE, *POD_R60], key=lambda v: v.params["r"])
     full = [at_fixed_point(Variant("full", {"tol": tol}, label=label))
             for label, tol in (("tol1e-3", FAST["tol"]), ("tol1e-5", 1e-5))]
-    fixed_point = [at_fixed_point(fast(v, FAST_STEP)) for v in POD_CUBATURE
-                   if v.params["r"] == 84 and v.training == "truth"]
-    return [level for v in (*POD_R60, *map(fast, by_rank), *(fast(v, FAST_STEP) for v in by_rank), *fixed_point,
-                            *full)
-            for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",))]
+    r84 = next(v for v in POD_CUBATURE if v.params["r"] == 84 and v.training == "truth")
+    every_tet = replace(r84, label="pod-affine-r84-truthdata", params=r84.params | {"cubature": "all"}, model=r84.label)
+    twins = {fast(r84, FAST_STEP).label: fast(every_tet, FAST_STEP),
+             at_fixed_point(fast(r84, FAST_STEP)).label: at_fixed_point(fast(every_tet, FAST_STEP))}
+    curves = (*POD_R60, *map(fast, by_rank), *(fast(v, FAST_STEP) for v in by_rank), at_fixed_point(fast(r84, FAST_STEP)),
+              *twins.values(), *full)
+    return [level for v in curves
+            for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",), twin=twins.get(v.label))]
 
 
 def on_other_mesh(variant: Variant) -> Variant:

@@ -206,25 +206,34 @@ def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     """`pod-fast`: POD at r = 60 on 150 tets at the defaults; r = 36, 60, 84 at tol 1e-3 with a single-precision
     Hessian, with and without the body's Hessian once a step, on the models of their default twins (no training
     of their own), r = 84 fitted to the truths with both at the fixed point; the full-space solver at the same
-    tolerance on the truth ladders' settings. Each a curve at dt, dt/2, dt/4 under BDF2."""
+    tolerance on the truth ladders' settings. Each a curve at dt, dt/2, dt/4 under BDF2; the two r = 84 truth-fitted
+    curves with the body's Hessian once a step have all-tets twins on their subspace."""
     sc = scenario_from_dict(block_drop(time={"dt": 0.01, "duration": 0.04, "frame_every": 2}) | {"name": "s"})
     fast = variant_set("pod-fast")
-    assert len(fast) == 51 and len({v.label for v in fast}) == 51
+    assert len(fast) == 57 and len({v.label for v in fast}) == 57
     pod = [v for v in fast if v.solver == "pod"]
     full = [v for v in fast if v.solver == "full"]
     assert {(v.params["r"], v.params["cubature"]) for v in pod} == {(36, "optimized:90"), (60, "optimized:150"),
-                                                                     (84, "optimized:210")}
+                                                                     (84, "optimized:210"), (84, "all")}
     for v in pod:
         quick = v.params.get("tol") == 1e-3
         assert quick == ("-tol1e-3-single-" in v.label) == (v.params.get("hessian") == "single")
         assert ("-single-step-" in v.label) == (v.params.get("hessian_refresh") == "step") <= quick
-        assert v.model == f"pod-affine-r{v.params['r']}-cub{v.params['cubature'].split(':')[1]}" + (
-            "-truthdata" if v.training == "truth" else "")
+        tets = 5 * v.params["r"] // 2  # a twin on every tet shares its cubature sibling's trained model
+        assert v.model == f"pod-affine-r{v.params['r']}-cub{tets}" + ("-truthdata" if v.training == "truth" else "")
         assert quick or v.params["r"] == 60
-    assert sum(v.params.get("hessian_refresh") == "step" for v in pod) == 21  # 3 ranks, 2 fits, 3 steps; r = 84
+    assert sum(v.params.get("hessian_refresh") == "step" for v in pod) == 27  # 3 ranks, 2 fits, 3 steps; 6 at r = 84
     fixed = [v for v in pod if "-fixed-point" in v.label]
-    assert len(fixed) == 3 and all(v.params["r"] == 84 and v.params["hessian_refresh"] == "step" and v.model ==
+    assert len(fixed) == 6 and all(v.params["r"] == 84 and v.params["hessian_refresh"] == "step" and v.model ==
                                    "pod-affine-r84-cub210-truthdata" for v in fixed)
+    twins = {v.curve: v for v in pod if v.params["cubature"] == "all"}
+    assert len(twins) == 2 and all(v.training == "truth" and v.params["r"] == 84 for v in twins.values())
+    with_twin = [v for v in pod if v.curve_twin]
+    assert len(with_twin) == 6 and {v.curve_twin for v in with_twin} == set(twins)
+    for v in with_twin:  # the twin differs in its cubature alone, at every level
+        twin = next(t for t in pod if t.curve == v.curve_twin and t.curve_level == v.curve_level)
+        assert twin.params == v.params | {"cubature": "all"} and twin.overrides == v.overrides
+        assert twin.dt_scale == v.dt_scale and v.params["cubature"] == "optimized:210"
     assert len(full) == 6 and sorted(v.params["tol"] for v in full) == [1e-5] * 3 + [1e-3] * 3
     assert NewtonSettings.tol == 1e-5  # the tol1e-5 levels are the truth ladder's own settings
     for v in fast:
