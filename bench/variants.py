@@ -176,6 +176,15 @@ def fast(variant: Variant, settings: dict = FAST) -> Variant:
                    model=variant.model or variant.label)
 
 
+#: `pod-cubature`'s r = 84 variant fitted to the truths, and the same on every tet, on its subspace (its model): the
+#: all-tets twin of the r = 84 truth-fitted cubature curves.
+POD_R84_TRUTH = next(v for v in POD_CUBATURE if v.params["r"] == 84 and v.training == "truth")
+POD_R84_EVERY_TET = replace(POD_R84_TRUTH, label="pod-affine-r84-truthdata", model=POD_R84_TRUTH.label,
+                            params=POD_R84_TRUTH.params | {"cubature": "all"})
+#: The optimised cubatures' sizes of `pod-cubature-size` [tets]: 2.5 r (as `POD_CUBATURE`), 5 r and 10 r.
+CUBATURE_SIZES = (210, 420, 840)
+
+
 def _pod_fast() -> list[Variant]:
     """The `pod-fast` set: under BDF2 with the start lag at dt, dt/2 and dt/4, POD at r = 60 on 150 tets at the
     default settings (r = 36 and 84 at them are `pod-cubature`'s), and at r = 36, 60 and 84 (on 90, 150 and 210 tets)
@@ -190,14 +199,26 @@ def _pod_fast() -> list[Variant]:
     by_rank = sorted([*POD_CUBATURE, *POD_R60], key=lambda v: v.params["r"])
     full = [at_fixed_point(Variant("full", {"tol": tol}, label=label))
             for label, tol in (("tol1e-3", FAST["tol"]), ("tol1e-5", 1e-5))]
-    r84 = next(v for v in POD_CUBATURE if v.params["r"] == 84 and v.training == "truth")
-    every_tet = replace(r84, label="pod-affine-r84-truthdata", params=r84.params | {"cubature": "all"}, model=r84.label)
-    twins = {fast(r84, FAST_STEP).label: fast(every_tet, FAST_STEP),
-             at_fixed_point(fast(r84, FAST_STEP)).label: at_fixed_point(fast(every_tet, FAST_STEP))}
-    curves = (*POD_R60, *map(fast, by_rank), *(fast(v, FAST_STEP) for v in by_rank), at_fixed_point(fast(r84, FAST_STEP)),
+    r84, every_tet = fast(POD_R84_TRUTH, FAST_STEP), fast(POD_R84_EVERY_TET, FAST_STEP)
+    twins = {r84.label: every_tet, at_fixed_point(r84).label: at_fixed_point(every_tet)}
+    curves = (*POD_R60, *map(fast, by_rank), *(fast(v, FAST_STEP) for v in by_rank), at_fixed_point(r84),
               *twins.values(), *full)
     return [level for v in curves
             for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",), twin=twins.get(v.label))]
+
+
+def _pod_cubature_size() -> list[Variant]:
+    """The `pod-cubature-size` set: POD r = 84 fitted to the truths at `FAST_STEP`'s (the start lag) on
+    CUBATURE_SIZES optimised tets and on every tet, each a curve at dt, dt/2 and dt/4 under BDF2 on the same subspace,
+    the cubature curves with the all-tets one as their twin: what a larger cubature buys, and costs, where the
+    cubature floors a curve."""
+    every_tet = fast(POD_R84_EVERY_TET, FAST_STEP)
+    sizes = [fast(replace(POD_R84_TRUTH, label=f"pod-affine-r84-cub{c}-truthdata",
+                          params=POD_R84_TRUTH.params | {"cubature": f"optimized:{c}"}), FAST_STEP)
+             for c in CUBATURE_SIZES]
+    return [level for v in (*sizes, every_tet)
+            for level in step_ladder(v, levels=(0, 1, 2), integrators=("bdf2",), twin=None if v is every_tet
+                                     else every_tet)]
 
 
 def on_other_mesh(variant: Variant) -> Variant:
@@ -282,6 +303,10 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # dt/2 and dt/4 (r = 84 also at the fixed point); the full-space solver at the looser tolerance and at the
     # default on the truth ladders' settings (issue 22's 100x; on demand; the truth-trained ones need a truth)
     "pod-fast": _pod_fast,
+    # r = 84 fitted to the truths, the body's Hessian once a step, on 210, 420 and 840 optimised tets and on every
+    # tet, each a curve at dt, dt/2 and dt/4 under BDF2 on one subspace: where the cubature floors a curve, what a
+    # larger one buys and costs (issue 22; on demand; needs a truth)
+    "pod-cubature-size": _pod_cubature_size,
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
     # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start
     # lag and at dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's

@@ -202,6 +202,30 @@ def test_the_frontier_joins_each_curve_per_scenario_in_its_points_colour_and_the
     assert frontier.count(f'<td class="text">{TIME_STEP}</td>') == 4  # each curve's finest row, per scenario
 
 
+def test_the_pod_cubature_size_set_grows_one_subspaces_cubature_beside_its_every_tet_twin():
+    """`pod-cubature-size`: r = 84 fitted to the truths at the fast settings with the body's Hessian once a step, on
+    210, 420 and 840 optimised tets and on every tet, each a curve at dt, dt/2, dt/4 under BDF2, the cubature curves
+    twinned with the every-tet one; the 210-tet and every-tet curves are `pod-fast`'s own (their runs shared)."""
+    size = variant_set("pod-cubature-size")
+    assert len(size) == 12 and len({v.label for v in size}) == 12
+    assert all(v.params["r"] == 84 and v.params["tol"] == 1e-3 and v.params["hessian_refresh"] == "step"
+               and v.overrides == {"time.integrator": "bdf2"} for v in size)
+    by_cubature = {}
+    for v in size:
+        assert v.solver == "pod" and v.training == "truth" and v.params | {"cubature": None} == size[0].params | {
+            "cubature": None}
+        by_cubature.setdefault(v.params["cubature"], []).append(v)
+    assert sorted(by_cubature) == ["all", "optimized:210", "optimized:420", "optimized:840"]
+    every = by_cubature.pop("all")
+    assert [v.curve_level for v in every] == [0, 1, 2] and not any(v.curve_twin for v in every)
+    for levels in by_cubature.values():
+        assert [v.dt_scale for v in levels] == [1.0, 0.5, 0.25]
+        assert all(v.curve_twin == every[0].curve for v in levels)
+    fast = {v.label: v for v in variant_set("pod-fast")}
+    for v in [*by_cubature["optimized:210"], *every]:  # the same runs as pod-fast's (the run key is the settings)
+        assert v.label in fast and fast[v.label].params == v.params and fast[v.label].overrides == v.overrides
+
+
 def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     """`pod-fast`: POD at r = 60 on 150 tets at the defaults; r = 36, 60, 84 at tol 1e-3 with a single-precision
     Hessian, with and without the body's Hessian once a step, on the models of their default twins (no training
