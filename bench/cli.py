@@ -129,7 +129,8 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
     """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
     suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
     parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
-    training epochs of the variants that train."""
+    training epochs of the variants that train. A variant that two sets share (the same name and definition) is
+    kept once; two different variants under one name are refused, naming it."""
     from dataclasses import replace
 
     from frictionbench.bench.runner import REFERENCE, Variant
@@ -145,8 +146,15 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
         else:
             raise ScenarioError("--solvers", name, "unknown variant set or solver; known: "
                                 f"{sorted(set(VARIANTS) | set(solver_names()))}")
-        out.extend(replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
-                   for v in variants)
+        for v in variants:
+            v = replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
+            label = v.label or v.solver  # a row's variant name
+            same = next((u for u in out if (u.label or u.solver) == label), None)
+            if same is None:
+                out.append(v)
+            elif same != v:
+                raise ScenarioError("--solvers", name, f"its variant {label!r} differs from another set's of that "
+                                    "name")
     return out
 
 

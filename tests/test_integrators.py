@@ -224,3 +224,22 @@ def test_the_scenario_loader_knows_the_integrators_in_a_fresh_interpreter():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.splitlines()[0] == "bdf2"
     assert "time.integrator" in done.stdout and "'rk4'" in done.stdout
+
+
+def test_sets_that_share_variants_run_each_once_and_a_name_defined_twice_is_refused(monkeypatch):
+    from dataclasses import replace
+
+    from frictionbench.bench import variants
+    from frictionbench.bench.cli import parse_variants
+
+    fast, size = parse_variants("pod-fast"), parse_variants("pod-cubature-size")
+    both = parse_variants("pod-fast,pod-cubature-size")
+    names = [v.label for v in both]
+    assert len(names) == len(set(names)) == len({v.label for v in fast} | {v.label for v in size})
+    assert len(names) < len(fast) + len(size)
+    sweep = parse_variants("full-sweep")  # BDF2 is in both
+    assert sorted(parse_variants("bdf2,full-sweep"), key=sweep.index) == sweep
+    clash = replace(size[0], params=size[0].params | {"tol": 1e-4})
+    monkeypatch.setitem(variants.VARIANTS, "clash", [clash])
+    with pytest.raises(ScenarioError, match=f"clash.*{size[0].label}"):
+        parse_variants("pod-cubature-size,clash")
