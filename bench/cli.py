@@ -129,8 +129,9 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
     """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
     suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
     parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
-    training epochs of the variants that train. A variant that two sets share (the same name and definition) is
-    kept once; two different variants under one name are refused, naming it."""
+    training epochs of the variants that train. A variant that two sets share (the same solver and name, the same
+    run: `_as_run`) is kept once, as the set that places it on a curve has it; two different runs of one solver
+    under one name are refused, naming them."""
     from dataclasses import replace
 
     from frictionbench.bench.runner import REFERENCE, Variant
@@ -148,14 +149,26 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
                                 f"{sorted(set(VARIANTS) | set(solver_names()))}")
         for v in variants:
             v = replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
-            label = v.label or v.solver  # a row's variant name
-            same = next((u for u in out if (u.label or u.solver) == label), None)
+            label = v.label or v.solver  # a row's variant name, with its solver the row's identity
+            same = next((i for i, u in enumerate(out) if u.solver == v.solver and (u.label or u.solver) == label),
+                        None)
             if same is None:
                 out.append(v)
-            elif same != v:
-                raise ScenarioError("--solvers", name, f"its variant {label!r} differs from another set's of that "
-                                    "name")
+            elif _as_run(out[same]) != _as_run(v):
+                raise ScenarioError("--solvers", name, f"its {v.solver} variant {label!r} differs from another "
+                                    "set's of that name")
+            elif v.curve and not out[same].curve:  # the same run: keep the one that places it on a curve
+                out[same] = v
     return out
+
+
+def _as_run(variant):
+    """The variant without what only places its rows (its curve, level and twin) and with its trained model named
+    as the rows name it (`model`, else its name): two variants equal here run the same run."""
+    from dataclasses import replace
+
+    return replace(variant, curve="", curve_level=None, curve_twin="",
+                   model=variant.model or variant.label or variant.solver)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -239,7 +239,13 @@ def test_sets_that_share_variants_run_each_once_and_a_name_defined_twice_is_refu
     assert len(names) < len(fast) + len(size)
     sweep = parse_variants("full-sweep")  # BDF2 is in both
     assert sorted(parse_variants("bdf2,full-sweep"), key=sweep.index) == sweep
+    assert len(parse_variants(",".join(variants.VARIANTS)))  # every set together: shared runs, no clash
     clash = replace(size[0], params=size[0].params | {"tol": 1e-4})
     monkeypatch.setitem(variants.VARIANTS, "clash", [clash])
     with pytest.raises(ScenarioError, match=f"clash.*{size[0].label}"):
         parse_variants("pod-cubature-size,clash")
+    default = parse_variants(None)  # LiCROM's and POD's `r20` are two variants: a row's identity has its solver
+    assert {(v.solver, v.label) for v in default} >= {("licrom", "r20"), ("pod", "r20")}
+    ladder = parse_variants("licrom-affine,licrom-ladder")  # `affine-r24` in both, on a curve in the second
+    (affine,) = [v for v in ladder if v.label == "affine-r24"]
+    assert affine.curve == "affine-r24" and affine.curve_level == 0
