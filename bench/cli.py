@@ -7,11 +7,15 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from frictionbench.bench.executors import usable_cores
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TruthSpec
+
+if TYPE_CHECKING:  # the runner is imported where a command needs it (the CLI starts without it)
+    from frictionbench.bench.runner import Variant
 
 JOBS_HELP = ("runs at a time, each with cores / jobs threads (default: on the CPU this machine's usable cores, "
              f"{usable_cores()} here; on CUDA 1, the GPU's runs one after another). Results do not depend on it; "
@@ -162,7 +166,7 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
     return out
 
 
-def _as_run(variant):
+def _as_run(variant: Variant) -> Variant:
     """The variant without what only places its rows (its curve, level and twin) and with its trained model named
     as the rows name it (`model`, else its name): two variants equal here run the same run."""
     from dataclasses import replace
