@@ -121,7 +121,7 @@ def elastic_gradient_kernel(
 
 
 #: Jacobi sweeps of `sym_eig3` at most; it stops once the off-diagonal part is at round-off (EIG_OFF_TOL), which
-#: takes 3-5 sweeps (quadratic convergence); the cap only bounds a non-finite input.
+#: takes 3-5 sweeps (quadratic convergence), and at once on a non-finite input: the cap is a safety bound only.
 EIG_MAX_SWEEPS = wp.constant(12)
 #: `sym_eig3` stops when the off-diagonal entries' squares sum to at most this share of the diagonal's: each is then
 #: below 1e-17 of the largest diagonal entry, under double precision's round-off of it.

@@ -51,7 +51,10 @@ class RecordedLaunch:
         self.labels = [arg.label for arg in kernel.adj.args]
         self._dim = dim
         self._values = {i: v for i, v in enumerate(inputs) if isinstance(v, (bool, int, float))}
-        self._packed: tuple | None = None  # CPU: (kernel entry, bounds, arguments, their reference), built once
+        cmd = self.cmd
+        self._direct = (_build_cpu_args_structs is not None and cmd.device.is_cpu and cmd.block_dim <= 1
+                        and not cmd.adjoint)  # the compiled kernel called on the structure built once
+        self._packed: tuple | None = None  # with _direct: (kernel entry, bounds, arguments, their reference)
 
     def set(self, index: int, value: bool | int | float) -> None:
         """Set the scalar argument at `index` (its position in the kernel's signature) to value, if it differs."""
@@ -67,7 +70,7 @@ class RecordedLaunch:
             self._dim = dim
             self._packed = None
         cmd = self.cmd
-        if _build_cpu_args_structs is None or not cmd.device.is_cpu or cmd.block_dim > 1 or cmd.adjoint:
+        if not self._direct:
             cmd.launch()
             return
         if self._packed is None:
