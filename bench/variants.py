@@ -301,8 +301,9 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
                              for level in step_ladder(lagged, levels=(0, 1, 2), integrators=("bdf2",))],
     # POD at r = 60 (between pod-cubature's ranks) and, at a looser Newton tolerance with the Hessian's products in
     # single precision (and with the body's Hessian once a step as well), at r = 36, 60 and 84, each a curve at dt,
-    # dt/2 and dt/4 (r = 84 also at the fixed point); the full-space solver at the looser tolerance and at the
-    # default on the truth ladders' settings (issue 22's 100x; on demand; the truth-trained ones need a truth)
+    # dt/2 and dt/4 (r = 84 also at the fixed point, and its two truth-fitted curves once a step on every tet too);
+    # the full-space solver at the looser tolerance and at the default on the truth ladders' settings (issue 22's
+    # 100x; on demand; the truth-trained ones need a truth)
     "pod-fast": _pod_fast,
     # r = 84 fitted to the truths, the body's Hessian once a step, on 210 and 420 optimised tets and on every
     # tet, each a curve at dt, dt/2 and dt/4 under BDF2 on one subspace: where the cubature floors a curve, what a
