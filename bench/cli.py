@@ -7,15 +7,10 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import TYPE_CHECKING
-
 from frictionbench.bench.executors import usable_cores
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TruthSpec
-
-if TYPE_CHECKING:  # the runner is imported where a command needs it (the CLI starts without it)
-    from frictionbench.bench.runner import Variant
 
 JOBS_HELP = ("runs at a time, each with cores / jobs threads (default: on the CPU this machine's usable cores, "
              f"{usable_cores()} here; on CUDA 1, the GPU's runs one after another). Results do not depend on it; "
@@ -133,12 +128,11 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
     """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
     suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
     parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
-    training epochs of the variants that train. A variant that two sets share (the same solver and name, the same
-    run: `_as_run`) is kept once, as the set that places it on a curve has it; two different runs of one solver
-    under one name are refused, naming them."""
+    training epochs of the variants that train. A variant that two sets share is kept once, and two different runs of
+    one solver under one name are refused, naming the set (`bench.runner.distinct_variants`)."""
     from dataclasses import replace
 
-    from frictionbench.bench.runner import REFERENCE, Variant
+    from frictionbench.bench.runner import REFERENCE, Variant, distinct_variants
     from frictionbench.bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS, variant_set
     from frictionbench.solvers.registry import solver_names
 
@@ -151,28 +145,13 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
         else:
             raise ScenarioError("--solvers", name, "unknown variant set or solver; known: "
                                 f"{sorted(set(VARIANTS) | set(solver_names()))}")
-        for v in variants:
-            v = replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
-            label = v.label or v.solver  # a row's variant name, with its solver the row's identity
-            same = next((i for i, u in enumerate(out) if u.solver == v.solver and (u.label or u.solver) == label),
-                        None)
-            if same is None:
-                out.append(v)
-            elif _as_run(out[same]) != _as_run(v):
-                raise ScenarioError("--solvers", name, f"its {v.solver} variant {label!r} differs from another "
-                                    "set's of that name")
-            elif v.curve and not out[same].curve:  # the same run: keep the one that places it on a curve
-                out[same] = v
+        with_epochs = [replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
+                       for v in variants]
+        try:
+            out = distinct_variants([*out, *with_epochs])
+        except ValueError as err:
+            raise ScenarioError("--solvers", name, str(err)) from None
     return out
-
-
-def _as_run(variant: Variant) -> Variant:
-    """The variant without what only places its rows (its curve, level and twin) and with its trained model named
-    as the rows name it (`model`, else its name): two variants equal here run the same run."""
-    from dataclasses import replace
-
-    return replace(variant, curve="", curve_level=None, curve_twin="",
-                   model=variant.model or variant.label or variant.solver)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

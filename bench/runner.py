@@ -17,7 +17,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -251,7 +251,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     out = Path(out)
     store = RunStore(out / "runs")
     suite = load_suite(suite_name).only(only).at_resolution(resolution)
-    variants, skipped = available_variants(variants)
+    variants, skipped = available_variants(distinct_variants(variants))
     spec = truth_config(suite, with_truth, truth_overrides)
     guard_resources(suite, variants, allow_large=allow_large or suite.allow_large, truth=spec)
     t0 = time.perf_counter()
@@ -282,6 +282,29 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
         build_report(out)
     return csv
+
+
+def distinct_variants(variants: Sequence[Variant]) -> list[Variant]:
+    """The variants with each run once, in their order: a variant of the same solver and name as an earlier one (a
+    row's identity) and the same run (`_as_run`) is kept once, as whichever of the two places it on a curve has it
+    (sets that share a variant, e.g. `pod-fast` and `pod-cubature-size`). Raises ValueError, naming the variant, for
+    two different runs of one solver under one name: their rows could not be told apart."""
+    kept: dict[tuple[str, str], Variant] = {}
+    for v in variants:
+        key = v.solver, v.label or v.solver
+        same = kept.setdefault(key, v)
+        if _as_run(same) != _as_run(v):
+            raise ValueError(f"its {v.solver} variant {key[1]!r} differs from another of that name")
+        if v.curve and not same.curve:
+            kept[key] = v
+    return list(kept.values())
+
+
+def _as_run(variant: Variant) -> Variant:
+    """The variant without what only places its rows (its curve, level and twin) and with its trained model named
+    as the rows name it (`model`, else its name): two variants equal here run the same run."""
+    return replace(variant, curve="", curve_level=None, curve_twin="",
+                   model=variant.model or variant.label or variant.solver)
 
 
 def available_variants(variants: Sequence[Variant]) -> tuple[list[Variant], list[dict]]:

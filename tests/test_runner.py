@@ -74,7 +74,8 @@ def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_f
 
     variants = [Variant("affine", {}, label="affine12"), Variant("affine", {}, label="affine12-remesh", remesh="alt"),
                 Variant("pod", {"r": 4}, label="r4")]
-    results = pd.read_csv(run_suite(str(suite_file), tmp_path / "out", variants=variants, jobs=1, report=False))
+    doubled = [*variants, Variant("affine", {}, label="affine12")]  # a variant given twice runs, and has rows, once
+    results = pd.read_csv(run_suite(str(suite_file), tmp_path / "out", variants=doubled, jobs=1, report=False))
     assert len(results) == 2 * 4
     affine = results[results["variant"] == "affine12"]
     assert (affine["speedup"] > 0).all() and affine["pos_rmse_rel"].notna().all()
@@ -85,6 +86,15 @@ def test_reduced_variants_give_rows_with_speedup_and_remeshing(tmp_path, suite_f
     pod = results[results["variant"] == "r4"]
     assert pod["pos_rmse_rel"].notna().all() and (pod["status"] == "ok").all()
     assert (pod["train_mesh"] == "block/coarse").all()
+
+
+def test_two_different_runs_under_one_name_are_refused_before_any_run(tmp_path, suite_file):
+    from frictionbench.bench.runner import Variant
+
+    clash = [Variant("pod", {"r": 4}, label="r4"), Variant("pod", {"r": 6}, label="r4")]
+    with pytest.raises(ValueError, match="pod variant 'r4' differs"):
+        run_suite(str(suite_file), tmp_path / "out", variants=clash, jobs=1, report=False)
+    assert not (tmp_path / "out" / "runs").exists() or not any((tmp_path / "out" / "runs").iterdir())
 
 
 def test_remesh_ratio_divides_by_the_same_model_on_the_same_scenario_on_its_training_mesh():
