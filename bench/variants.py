@@ -222,6 +222,21 @@ def _pod_cubature_size() -> list[Variant]:
                                      else every_tet)]
 
 
+#: The ranks of `pod-rank` above r = 84 (POD fitted to the truths, every tet): a held-out member's error falls with the
+#: rank long after its err_projection is small (docs/figures.md), and every tet keeps the cubature out of the sweep.
+HELD_OUT_RANKS = (120, 180, 240, 300)
+
+
+def _pod_rank() -> list[Variant]:
+    """The `pod-rank` set: POD fitted to the truths on every tet at r = 84 (`pod-fast`'s every-tet twin, the same
+    run) and HELD_OUT_RANKS, at `FAST_STEP`'s settings and the truth ladders' step settings (`at_truth_step`): the
+    reduced dynamics' error against rank where the time step no longer decides it."""
+    ranks = [POD_R84_EVERY_TET, *(Variant("pod", {"r": r, "affine": True, "cubature": "all"},
+                                          label=f"pod-affine-r{r}-truthdata", training="truth")
+                               for r in HELD_OUT_RANKS)]
+    return [at_truth_step(fast(v, FAST_STEP)) for v in ranks]
+
+
 def on_other_mesh(variant: Variant) -> Variant:
     """The variant on the other mesh of the shape (`remesh="alt"`: coarse -> coarse_alt), on the variant's trained
     model and compared with the variant itself (`remesh_of`, for `remesh_ratio`); labelled `<label>-remesh`, a point
@@ -309,6 +324,9 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # tet, each a curve at dt, dt/2 and dt/4 under BDF2 on one subspace: where the cubature floors a curve, what a
     # larger one buys and costs (issue 22; on demand; needs a truth)
     "pod-cubature-size": _pod_cubature_size,
+    # POD fitted to the truths on every tet at r = 84 to 300, at the fast settings with the body's Hessian once a
+    # step, at the truth ladders' step settings: the rank a held-out member needs (issue 22; on demand; needs a truth)
+    "pod-rank": _pod_rank,
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
     # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start
     # lag and at dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's

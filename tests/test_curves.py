@@ -227,6 +227,23 @@ def test_the_pod_cubature_size_set_grows_one_subspaces_cubature_beside_its_every
         assert v.label in fast and fast[v.label].params == v.params and fast[v.label].overrides == v.overrides
 
 
+def test_the_pod_rank_set_sweeps_the_rank_of_one_fit_on_every_tet_at_the_truth_step():
+    """`pod-rank`: POD fitted to the truths on every tet at r = 84 (pod-fast's every-tet run) to 300 at the fast
+    settings with the body's Hessian once a step, each at BDF2 dt/4 with contact at the fixed point; with `pod-fast`
+    the r = 84 run is kept once."""
+    from frictionbench.bench.cli import parse_variants
+
+    rank = variant_set("pod-rank")
+    assert [v.params["r"] for v in rank] == [84, 120, 180, 240, 300] and len({v.label for v in rank}) == 5
+    for v in rank:
+        assert v.solver == "pod" and v.training == "truth" and v.params["cubature"] == "all"
+        assert v.params | {"r": 0} == rank[0].params | {"r": 0} and v.params["hessian_refresh"] == "step"
+        assert v.dt_scale == 0.25 and v.overrides == {"time.integrator": "bdf2", "contact.lag": "fixed-point"}
+    fast = {v.label: v for v in variant_set("pod-fast")}
+    assert rank[0].label in fast and fast[rank[0].label].params == rank[0].params
+    assert len(parse_variants("pod-fast,pod-rank")) == len(fast) + 4
+
+
 def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
     """`pod-fast`: POD at r = 60 on 150 tets at the defaults; r = 36, 60, 84 at tol 1e-3 with a single-precision
     Hessian, with and without the body's Hessian once a step, on the models of their default twins (no training
