@@ -7,6 +7,7 @@ import signal
 import sys
 import threading
 from pathlib import Path
+
 from frictionbench.bench.executors import usable_cores
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.model import MeshSpec, Scenario
