@@ -327,6 +327,9 @@ VARIANTS: dict[str, list[Variant] | Callable[[], list[Variant]]] = {
     # POD fitted to the truths on every tet at r = 84 to 300, at the fast settings with the body's Hessian once a
     # step, at the truth ladders' step settings: the rank a held-out member needs (issue 22; on demand; needs a truth)
     "pod-rank": _pod_rank,
+    # those on the other mesh of the shape beside themselves (modes interpolated there, every tet): whether the rank
+    # that brings a held-out member's dynamics into range does the same for the other mesh (issue 22; on demand)
+    "pod-rank-remesh": lambda: [v for level in _pod_rank() for v in (level, on_other_mesh(level))],
     # the same POD variants on the other mesh of the shape beside themselves (their modes interpolated there, the
     # optimised cubature selected there from the same latent training states): BDF2 at dt and dt/2 with the start
     # lag and at dt/4 with the fixed point, the points where they were most accurate for their cost (issue 22's

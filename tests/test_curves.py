@@ -242,6 +242,10 @@ def test_the_pod_rank_set_sweeps_the_rank_of_one_fit_on_every_tet_at_the_truth_s
     fast = {v.label: v for v in variant_set("pod-fast")}
     assert rank[0].label in fast and fast[rank[0].label].params == rank[0].params
     assert len(parse_variants("pod-fast,pod-rank")) == len(fast) + 4
+    remesh = variant_set("pod-rank-remesh")  # each beside its twin on the other mesh, on its own trained model
+    assert remesh[::2] == rank and len(remesh) == 10
+    assert all(o.remesh == "alt" and o.remesh_of == v.label and o.model == (v.model or v.label)
+               and o.params == v.params and not o.curve for v, o in zip(remesh[::2], remesh[1::2]))
 
 
 def test_the_pod_fast_set_measures_the_looser_tolerance_on_both_sides():
