@@ -156,7 +156,8 @@ def parse_variants(spec: str | None, epochs: int | None = None, suite: str | Non
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done."""
+    """Run a suite's matrix into --out (results.csv, report.html); resumes what is already done. Prints the results'
+    summary (`print_summary`) and the report's path at the end."""
     from frictionbench.bench.runner import run_suite
 
     with_baseline = args.baseline is not None and not args.no_report
@@ -175,13 +176,28 @@ def cmd_run(args: argparse.Namespace) -> int:
                     only=args.only, resolution=args.resolution, allow_large=args.allow_large,
                     with_truth=not args.no_truth,
                     truth_overrides={"tol": args.truth_tol, "depth": args.truth_depth,
-                                     "integrator": args.truth_integrator})
+                                     "integrator": args.truth_integrator},
+                    truth_store=args.truth_store, use_truth_store=not args.no_truth_store)
     print(f"results: {csv}")
     if with_baseline:
         return cmd_report(argparse.Namespace(dir=args.out, baseline=args.baseline, tol=args.tol))
+    print_summary(args.out)
     if not args.no_report:
         print(f"report:  {Path(args.out) / 'report.html'}")
     return 0
+
+
+def print_summary(out: str | Path, width: int = 118) -> None:
+    """Print a results folder's answer in a few lines (`bench.reporting.folder_summary`, the report's first
+    screen): the verdict, one sentence per solver family, the truths certified and the gate counts."""
+    import textwrap
+
+    from frictionbench.bench.reporting import folder_summary
+
+    print()
+    for line in folder_summary(out).lines():
+        print(textwrap.fill(line, width, initial_indent="", subsequent_indent="      " if line[:1] == " " else "  ",
+                            break_on_hyphens=False, break_long_words=False))
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -253,12 +269,15 @@ def cmd_timescales(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    """Rebuild report.html from a results folder (with a section comparing it with --baseline, if given)."""
+    """Rebuild report.html from a results folder (with a section comparing it with --baseline, if given) and print
+    its summary (`print_summary`)."""
     from frictionbench.bench.compare import CompareError, compare_folders, summary
     from frictionbench.bench.reporting import build_report
 
     try:
-        print(f"report:  {build_report(args.dir, baseline=args.baseline, tolerances=args.tol)}")
+        report = build_report(args.dir, baseline=args.baseline, tolerances=args.tol)
+        print_summary(args.dir)
+        print(f"report:  {report}")
         if args.baseline is not None:
             print(f"against the baseline {args.baseline}: "
                   f"{summary(compare_folders(args.baseline, args.dir, args.tol))}")
@@ -375,6 +394,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--truth-depth", type=int, help="the truth ladder's most halvings of dt (default: the suite's)")
     s.add_argument("--truth-integrator", help="the truth ladder's time integrator (default: the suite's, else "
                    f"{TruthSpec.integrator})")
+    store = s.add_mutually_exclusive_group()
+    store.add_argument("--truth-store", metavar="DIR", help="the truth store: truth-ladder runs kept for every "
+                       "results folder, reused instead of recomputed (default: $FRICTIONBENCH_TRUTH_STORE, else "
+                       "$FRICTIONBENCH_CACHE/truths, else ~/.cache/frictionbench/truths; delete it to clear it)")
+    store.add_argument("--no-truth-store", action="store_true", help="neither read nor write the truth store")
     _add_baseline_args(s)
     _add_allow_large_arg(s)
     s.set_defaults(func=cmd_run)

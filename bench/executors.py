@@ -1,7 +1,9 @@
 """Pluggable executors for the matrix: a local process pool (default) or a Dask cluster.
 
-Both give `share(obj) -> handle` (a large argument sent once per worker, passed to `submit` in place of the
-object), `submit(fn, *args) -> future` and `as_completed(futures)`; the runner uses nothing else. Tasks read and
+Both give `slots` (how many runs keep every worker busy: the runner keeps that many in flight), `share(obj) ->
+handle` (a large argument sent once per worker, passed to `submit` in place of the object), `submit(fn, *args) ->
+future`, `as_completed(futures)` and `abandon(futures)` (the last runs in flight, whose results are not wanted,
+stopped as the executor closes); the runner uses nothing else. Tasks read and
 write no files of the client's (`bench.payload`): a Dask worker may share no filesystem with it.
 """
 
@@ -25,6 +27,8 @@ class ProcessExecutor:
 
     def __init__(self, jobs: int) -> None:
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+        self.slots = jobs
+        self.abandoned = False
 
     @staticmethod
     def share(obj: object) -> object:
@@ -40,20 +44,27 @@ class ProcessExecutor:
         """Futures in completion order."""
         return cf_as_completed(list(futures))
 
+    def abandon(self, futures: Iterable[Future]) -> None:
+        """The runs in flight are not wanted: the pool's workers are stopped when it closes, not waited for (the
+        pool is used for nothing else after)."""
+        self.abandoned = True
+
     def __enter__(self) -> "ProcessExecutor":
         return self
 
     def __exit__(self, exc_type, *exc) -> None:
-        if exc_type is not None:  # interrupted (Ctrl-C, SIGTERM, an error): stop the runs in flight now, not
-            # when they end; what is stored stays and a rerun resumes (Python >= 3.14 has terminate_workers)
+        stop = exc_type is not None or self.abandoned
+        if stop:  # interrupted (Ctrl-C, SIGTERM, an error) or abandoned: stop the runs in flight now, not when they
+            # end; what is stored stays and a rerun resumes (Python >= 3.14 has terminate_workers)
             for process in list((getattr(self.pool, "_processes", None) or {}).values()):
                 process.terminate()
-        self.pool.shutdown(wait=exc_type is None, cancel_futures=True)
+        self.pool.shutdown(wait=not stop, cancel_futures=True)
 
 
 class DaskExecutor:
     """A Dask distributed client: `address` of a running scheduler (env FRICTIONBENCH_DASK_SCHEDULER), or a
-    LocalCluster of `jobs` single-threaded worker processes started for the run."""
+    LocalCluster of `jobs` single-threaded worker processes started for the run. Its `slots`: `jobs`, or on a
+    running scheduler the worker threads it has when the run starts where they are more."""
 
     def __init__(self, jobs: int, address: str | None = None) -> None:
         from dask.distributed import Client, LocalCluster
@@ -62,6 +73,7 @@ class DaskExecutor:
         self.cluster = None if address else LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                                          dashboard_address=None)
         self.client = Client(address or self.cluster)
+        self.slots = max(jobs, sum(self.client.nthreads().values())) if address else jobs
 
     def share(self, obj: object):
         """`obj` scattered to every worker once (a future; tasks given it receive the object, and a worker that
@@ -79,6 +91,11 @@ class DaskExecutor:
         from dask.distributed import as_completed
 
         return as_completed(list(futures))
+
+    def abandon(self, futures) -> None:
+        """The runs of `futures` are not wanted: cancelled (a worker running one finishes it, and its result is
+        dropped)."""
+        self.client.cancel(list(futures))
 
     def __enter__(self) -> "DaskExecutor":
         return self

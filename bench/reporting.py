@@ -1,4 +1,5 @@
-"""Build report.html of a results folder from its stored results (results.csv, run store, gates)."""
+"""Build report.html of a results folder from its stored results (results.csv, run store, gates), and its answer in
+plain words for the terminal (`folder_summary`: the same `analysis.summary.Summary` as the report's first screen)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,11 @@ from pathlib import Path
 import pandas as pd
 
 from frictionbench.analysis.metrics import error_over_time
-from frictionbench.bench.gates import check, load_gates
+from frictionbench.analysis.summary import Summary, ladder_mask, numeric_column, summarise
+from frictionbench.bench.gates import Verdict, check, load_gates
 from frictionbench.bench.store import RunStore, load_run_info
 from frictionbench.reports.html import ScenarioRuns, comparison_section, write_report_html
-from frictionbench.reports.plots import ladder_mask, numeric_column
-from frictionbench.scenarios.suites import load_suite
+from frictionbench.scenarios.suites import Suite, load_suite
 from frictionbench.solvers.trajectory import Trajectory
 
 
@@ -32,15 +33,26 @@ def _truth(rows: pd.DataFrame, store: RunStore) -> tuple[str, Trajectory] | None
     return (f"truth ({match.iloc[0]['solver']}/{match.iloc[0]['variant']})", traj) if traj is not None else None
 
 
+def _judged(out: Path, gates_file: str | Path | None) -> tuple[pd.DataFrame, Suite, list[Verdict]]:
+    """A results folder's results table, its suite and the verdicts of `gates_file` (None: the shipped gates)."""
+    results = pd.read_csv(out / "results.csv")
+    suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path
+    return results, suite, check(results, load_gates(gates_file), suite.name)
+
+
+def folder_summary(out: str | Path, gates_file: str | Path | None = None) -> Summary:
+    """The answer of a results folder (`analysis.summary.summarise` of its results and gate verdicts)."""
+    results, _, verdicts = _judged(Path(out), gates_file)
+    return summarise(results, verdicts)
+
+
 def build_report(out: str | Path, gates_file: str | Path | None = None, max_scenarios: int = 4,
                  baseline: str | Path | None = None, tolerances: Sequence[str] = ()) -> Path:
     """Rebuild `out/report.html` from `out/results.csv` and the run store, judged by `gates_file` (None: the
     shipped gates); renders the first scenarios. With a `baseline` result set (an output folder), the report gets a
     section comparing the results with it (`bench.compare`, its default tolerances changed by `tolerances`)."""
     out = Path(out)
-    results = pd.read_csv(out / "results.csv")
-    suite = load_suite(load_run_info(out)["suite"])  # a shipped name or a suite file's path
-    verdicts = check(results, load_gates(gates_file), suite.name)
+    results, suite, verdicts = _judged(out, gates_file)
     planes = {m.scenario.name: m.scenario.plane for m in suite.scenarios}
     store = RunStore(out / "runs")
     runs = []

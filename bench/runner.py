@@ -14,10 +14,13 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -30,7 +33,7 @@ from frictionbench.analysis.table import write_results_csv
 from frictionbench.analysis.truth import ladder_continues
 from frictionbench.bench.executors import make_executor, usable_cores
 from frictionbench.bench.payload import Artefact, RunResult, artefact_folders, localised
-from frictionbench.bench.store import RunStore, run_key
+from frictionbench.bench.store import RunStore, TruthStore, run_key, truth_store_root
 from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, shape_of
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
@@ -38,6 +41,7 @@ from frictionbench.scenarios.model import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TOLERANCE_FACTOR, SuiteMember, TruthSpec, load_suite
 from frictionbench.solvers.registry import entries, register_entries, unavailable
 from frictionbench.solvers.trajectory import Trajectory
+from frictionbench.solvers.version import PHYSICS_VERSION
 
 #: The solver whose runs are the references of the matrix (every other run is compared with its run of the same
 #: scenario); its default parameters are the reference's.
@@ -109,9 +113,9 @@ class Task:
     params: dict
     mesh: MeshSpec | None = None
 
-    @property
+    @cached_property
     def key(self) -> str:
-        """Store key of this run."""
+        """Store key of this run (computed once: it hashes the scenario and the mesh)."""
         return run_key(self.scenario, self.solver, self.params, self.mesh)
 
 
@@ -128,6 +132,9 @@ def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: 
     from frictionbench.solvers.run import run_scenario
     from frictionbench.solvers.warp_runtime import cache_root
 
+    # a worker's bars are disabled: a thread lock, not tqdm's inter-process one, whose semaphore a worker stopped
+    # mid-run (a run ahead abandoned, `run_tasks`) would leave for the resource tracker to warn about
+    tqdm.set_lock(threading.RLock())
     register_entries(solvers or {})
     traj = None
     try:
@@ -137,6 +144,7 @@ def execute(task: Task, mesh: TetMesh, artefacts: tuple[Artefact, ...], device: 
     except Exception as err:  # a failed run is a row with its reason, never a crash of the matrix
         traj, stats = None, {"failed": True, "failure": f"{type(err).__name__}: {err}", "solver": task.solver}
     stats["params"] = task.params  # the record names the client's artefacts, not the worker's copies
+    stats["physics_version"] = PHYSICS_VERSION  # what computed it (`bench.store.TruthStore` keeps only its own)
     if traj is not None:
         traj.meta["params"] = task.params
     stats["scenario"] = task.scenario.name
@@ -153,75 +161,141 @@ MAX_ATTEMPTS = 3
 
 
 def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, executor: str,
-              desc: str, then: Callable[[Task], Sequence[Task]] | None = None) -> int:
+              desc: str, then: Callable[[Task], Sequence[Task]] | None = None,
+              ahead: Callable[[], Sequence[Task]] | None = None, truths: TruthStore | None = None) -> int:
     """Execute the tasks not yet done, `jobs` at a time, with a progress bar; returns how many were computed.
 
-    Each distinct mesh and artefact is shared with the workers once; the client stores each result as it
-    arrives, so an interruption costs only the tasks in flight (a Dask task whose worker dies is rerun on another;
-    one the executor cancels instead, as Dask's scheduler does when the worker held the only copy of a shared mesh
-    ("lost dependencies"), is submitted again with its mesh and artefacts shared afresh, up to MAX_ATTEMPTS times in
-    all). `then(task)`, where given, is called on the client once a task's result is stored (or found stored) and
-    returns the tasks that follow from it (a ladder's next level), submitted at once: no worker waits for a slower
-    member's run. A task that gives no result (not a failed run, which is a result) is raised once every other one
-    is stored.
+    The client keeps at most `jobs` tasks in flight (the executor's `slots`: more on a Dask cluster of more workers)
+    and chooses each one it submits: first the tasks asked for
+    (`tasks`, then what `then` returns), in the order asked; where none waits and a slot would stay idle, the first
+    task of `ahead()` (where given: tasks worth starting before anything asks for them, a ladder's next levels, most
+    wanted first) not yet stored, asked for, in flight or tried. A task run ahead is stored like any (a valid run);
+    asked for later, it is followed at once (or once it finishes); one still in flight when nothing asked for is
+    left is abandoned (the executor stops it). Each distinct mesh and artefact is shared with the workers once; the
+    client stores each result as it arrives, so an interruption costs only the tasks in flight (a Dask task whose
+    worker dies is rerun on another; one the executor cancels instead, as Dask's scheduler does when the worker held
+    the only copy of a shared mesh ("lost dependencies"), is submitted again with its mesh and artefacts shared
+    afresh, up to MAX_ATTEMPTS times in all). `then(task)`, where given, is called on the client once a task asked
+    for is stored (or found stored) and returns the tasks that follow from it (a ladder's next level): no worker
+    waits for a slower member's run. `truths`, where given, is looked up before a task asked for is computed (a run
+    found there is copied into `store`, `TruthStore.fetch`) and is given each run computed here or found stored
+    (`TruthStore.put`). A task asked for that gives no result (not a failed run, which is a result) is raised once
+    every other one is stored. The progress bar counts the tasks asked for; its note, those running ahead.
     """
-    seen: set[str] = set()
+    asked: set[str] = set()
+    waiting: deque[Task] = deque()
+    flying: set[str] = set()  # keys in flight
+    tried: set[str] = set()  # keys submitted ahead of being asked for
+    ahead_done: set[str] = set()  # keys computed ahead and not asked for yet
+    total = done = 0  # the tasks asked for that were not stored when asked (or were run ahead), and those done
 
-    def not_done(new: Sequence[Task]) -> list[Task]:
-        """The tasks of `new` not seen yet and not stored, after following the stored ones through `then`."""
-        out, queue = [], list(new)
+    def stored(t: Task) -> bool:
+        """Whether t is in the store (copied there from the truth store if it is only there)."""
+        if store.done(t.key):
+            if truths is not None:
+                truths.put(t.key, store)
+            return True
+        return truths is not None and truths.fetch(t.key, store)
+
+    def ask(new: Sequence[Task]) -> None:
+        """Ask for the tasks of `new` not asked for yet: the stored ones are followed through `then` at once, the
+        others wait for a slot (or for their run ahead to finish)."""
+        nonlocal total, done
+        queue = deque(new)
         while queue:
-            t = queue.pop(0)
-            if t.key in seen:
+            t = queue.popleft()
+            if t.key in asked:
                 continue
-            seen.add(t.key)
-            if not store.done(t.key):
-                out.append(t)
-            elif then is not None:
-                queue.extend(then(t))
-        return out
+            asked.add(t.key)
+            if t.key in flying:
+                total += 1
+            elif stored(t):
+                if t.key in ahead_done:
+                    ahead_done.discard(t.key)
+                    total, done = total + 1, done + 1
+                if then is not None:
+                    queue.extend(then(t))
+            else:
+                waiting.append(t)
+                total += 1
 
-    todo = not_done(tasks)
-    if not todo:
+    ask(tasks)
+    if not waiting:
         return 0
     threads = max(1, usable_cores() // jobs)
     computed = 0
-    with make_executor(executor, jobs) as ex, tqdm(total=len(todo), desc=desc, unit="run") as bar:
+    with make_executor(executor, jobs) as ex, tqdm(total=total, desc=desc, unit="run") as bar:
         shared: dict = {}
+        pending: dict = {}
+        attempts: dict[str, int] = {}
+        lost = []
 
-        def submit(t: Task, fresh: bool = False):
+        def submit(t: Task, fresh: bool = False) -> None:
             """Submit t with its mesh and artefacts shared once (`fresh`: shared again, the earlier copies lost)."""
             needs = [t.mesh or t.scenario.mesh, *artefact_folders(t.params)]
             for need in needs:
                 if fresh or need not in shared:
                     shared[need] = ex.share(load_mesh(need) if isinstance(need, MeshSpec) else Artefact.of(need))
-            return ex.submit(execute, t, shared[needs[0]], tuple(shared[n] for n in needs[1:]), device, threads,
-                             entries())
+            f = ex.submit(execute, t, shared[needs[0]], tuple(shared[n] for n in needs[1:]), device, threads,
+                          entries())
+            pending[f] = t
+            flying.add(t.key)
+            attempts[t.key] = attempts.get(t.key, 0) + 1
 
-        pending = {submit(t): t for t in todo}
-        attempts = {t.key: 1 for t in todo}
-        lost = []
-        while pending:
+        def next_ahead() -> Task | None:
+            """The first task of `ahead()` worth a slot: not stored, asked for, in flight or tried."""
+            for t in ahead() if ahead is not None else ():
+                if (t.key not in asked and t.key not in flying and t.key not in tried and not store.done(t.key)
+                        and not (truths is not None and truths.done(t.key))):
+                    return t
+            return None
+
+        def fill() -> None:
+            """Submit tasks while a slot is free (the waiting ones first, then ones ahead); bring the bar up to date."""
+            while len(pending) < ex.slots:
+                if waiting:
+                    submit(waiting.popleft())
+                elif (t := next_ahead()) is not None:
+                    tried.add(t.key)
+                    submit(t)
+                else:
+                    break
+            bar.total = total
+            if tried:
+                bar.set_postfix_str(f"{len(flying - asked)} ahead", refresh=False)
+            bar.update(done - bar.n)
+
+        fill()
+        while waiting or asked & flying:
             f = next(iter(ex.as_completed(pending)))
             t = pending.pop(f)
+            flying.discard(t.key)
             try:
                 result = f.result()
             except CancelledError as err:
                 if attempts[t.key] < MAX_ATTEMPTS:
-                    attempts[t.key] += 1
-                    pending[submit(t, fresh=True)] = t
+                    submit(t, fresh=True)
                     continue
-                lost.append(err)
+                if t.key in asked:
+                    lost.append(err)
             except Exception as err:  # no result at all (e.g. every worker that tried it died): the others are
-                lost.append(err)      # still stored, and the rerun computes only this one
+                if t.key in asked:    # still stored, and the rerun computes only this one
+                    lost.append(err)
             else:
                 store.save(t.key, result.trajectory, result.stats | {"timed_in": SESSION})
+                if truths is not None:
+                    truths.put(t.key, store)
                 computed += 1
-                for n in not_done(then(t) if then is not None else ()):
-                    pending[submit(n)] = n
-                    attempts[n.key] = 1
-                    bar.total += 1
-            bar.update()
+                if t.key not in asked:
+                    ahead_done.add(t.key)
+                elif then is not None:
+                    ask(then(t))
+            if t.key in asked:
+                done += 1
+            fill()
+        if pending:  # runs ahead of a ladder that stopped below them: not wanted
+            bar.set_postfix_str(f"{len(pending)} ahead given up")
+            ex.abandon(list(pending))
     if lost:
         raise lost[0]
     return computed
@@ -238,14 +312,17 @@ def mesh_variant(member: SuiteMember, resolution: str) -> MeshSpec:
 def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], device: str = "cpu", jobs: int = 1,
               executor: str = "process", report: bool = True, only: str | None = None,
               resolution: str | None = None, allow_large: bool = False, reference: str = REFERENCE,
-              with_truth: bool = True, truth_overrides: dict | None = None) -> Path:
+              with_truth: bool = True, truth_overrides: dict | None = None, truth_store: str | Path | None = None,
+              use_truth_store: bool = True) -> Path:
     """Run the matrix of `suite_name` with `variants` into `out` (only the members matching the shell pattern
     `only`, if given; every member on its shape's mesh at `resolution`, if given, `Suite.at_resolution`), every run
     compared with the `reference` solver's; returns the results.csv path. Every run is checked by the resource guard
     first (`guard_resources`; `allow_large` or the suite's own `allow_large` lifts its bounds). With `with_truth`,
     the suite's `[truth]` (changed by `truth_overrides`: tol, depth, integrator,
     named `--truth-*` in errors; a suite without one gets the defaults when overrides are given) builds a ground
-    truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns. A variant whose solver
+    truth per member (`run_ladders`) and every row gets err_truth and the frontier's columns; with
+    `use_truth_store`, its runs are kept in and taken from the truth store at `truth_store` (default
+    `bench.store.truth_store_root`), shared by every results folder of the machine. A variant whose solver
     is unavailable here is skipped (`available_variants`): a note on stderr and `skipped` in run.json say why, and
     results.csv has no row for it."""
     out = Path(out)
@@ -259,7 +336,8 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     remesh_refs = [Task(m.scenario, reference, {}, mesh_variant(m, v.remesh))
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
     run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
-    ladders = run_ladders(suite, spec, store, device, jobs, executor, reference) if spec else {}
+    truths = TruthStore(truth_store_root(truth_store), device) if spec and use_truth_store else None
+    ladders = run_ladders(suite, spec, store, device, jobs, executor, reference, truths) if spec else {}
     resolved = prepare_variants(suite, variants, store, refs, out / "models", device, ladders)
     tasks = []
     for m in suite.scenarios:
@@ -276,6 +354,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
                                          "variants": [v.__dict__ for v in variants], "only": only,
                                          "resolution": resolution, "reference": reference,
                                          "truth": spec.__dict__ if spec else None,
+                                         "truth_store": str(truths.shelf) if truths else None,
                                          "skipped": skipped, "wall_s": time.perf_counter() - t0})
     if report:
         from frictionbench.bench.reporting import build_report  # here, not above: the worker processes need no plotting
@@ -419,19 +498,28 @@ class Ladder:
 
 
 def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int, executor: str,
-                reference: str = REFERENCE) -> dict[str, dict[str, Ladder]]:
+                reference: str = REFERENCE, truths: TruthStore | None = None) -> dict[str, dict[str, Ladder]]:
     """Every member's truth ladder (`spec.integrator`) climbed level by level until `ladder_continues` says stop,
-    each member on its own (its next level is submitted as soon as its last one is stored); then, for that member,
-    the ladders of `spec.ladders` to the same level as its truth. Every run is an ordinary run of the store
-    (cached, resumable). Returns scenario -> integrator -> Ladder (the truth's integrator first)."""
+    each member on its own (its next level is asked for as soon as its last one is stored); then, for that member,
+    the ladders of `spec.ladders` to the same level as its truth. A slot that would stay idle runs a climbing
+    ladder's next levels ahead (`levels_ahead`; never beyond `spec.depth`, never before a run asked for): a level
+    is added to its ladder only once the climb below it asks for it, so the ladders are those of the climb level by
+    level, and a level run ahead of a ladder that stopped below it is only stored. Every run is an ordinary run of
+    the store (cached, resumable), and of `truths` where given (`run_tasks`). Returns scenario -> integrator ->
+    Ladder (the truth's integrator first)."""
     ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference, spec)}
                for m in suite.scenarios}
-    climbing: dict[str, tuple[Ladder, int]] = {}  # task key -> (truth ladder, level)
+    climbing: dict[str, tuple[Ladder, int]] = {}  # task key -> (truth ladder, level) of the level asked for
     last: dict[int, Trajectory | None] = {}
     others: list[tuple[Ladder, Task]] = []
+    tasks: dict[tuple[int, int], Task] = {}
+
+    def level(ladder: Ladder, k: int) -> Task:
+        """The task of level k of a truth ladder (built once)."""
+        return tasks.setdefault((id(ladder), k), ladder.task(k))
 
     def climb(ladder: Ladder, k: int) -> Task:
-        task = ladder.task(k)
+        task = level(ladder, k)
         climbing[task.key] = (ladder, k)
         return task
 
@@ -453,14 +541,28 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
         others.extend(new)
         return [t for _, t in new]
 
+    def ahead() -> list[Task]:
+        """The levels above each climbing ladder's, nearest first (`levels_ahead`)."""
+        return [level(ladder, j) for ladder, j in levels_ahead(list(climbing.values()), spec.depth)]
+
     kind = "dt / 2^level" if spec.start_tol is None else f"tol {spec.start_tol:g} / {TOLERANCE_FACTOR:g}^level"
     run_tasks([climb(by[spec.integrator], 0) for by in ladders.values()], store, device, jobs, executor,
-              f"truth ladders ({kind})", then=then)
+              f"truth ladders ({kind})", then=then, ahead=ahead, truths=truths)
     previous: dict[int, Trajectory | None] = {}
     for ladder, task in others:
         if not ladder.failed:
             previous[id(ladder)] = ladder.add(task, store, previous.get(id(ladder)))
     return ladders
+
+
+def levels_ahead(climbing: Sequence[tuple[Ladder, int]], depth: int) -> list[tuple[Ladder, int]]:
+    """(ladder, level) of the levels a run may start ahead of its climb, most wanted first: for each (ladder,
+    level asked for) of `climbing`, the levels above it up to `depth`, nearest first, and among equally near ones in
+    the order of `climbing`. The nearest is the one most likely needed and the cheapest (each level costs about
+    twice the one below it), and a run ahead holds no slot a climb needs: a level that ends frees its slot and asks
+    for at most one run (the next level, often in flight already), so only a truth ladder's end, asking for its
+    frontier ladders' levels at once, may wait for a run ahead to end."""
+    return [(ladder, k + gap) for gap in range(1, depth + 1) for ladder, k in climbing if k + gap <= depth]
 
 
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:

@@ -1,11 +1,12 @@
 """One self-contained `report.html`: a headline first, then interactive plots, a 3D viewer per scenario and
 sortable, filterable tables; it opens offline (no request: plotly.js and the data are inline).
 
-Sections (with these ids and headings): summary (the headline: per solver family its best variant, the gates as a
-count with the failures), accuracy-vs-time (the frontier), ladders, outcomes (each scenario's truth outcomes and
-their convergence), error-parts, error-over-time, viewer,
-time-convergence, stick-slip, remeshing, stability, gate-verdicts, results, any extra sections, provenance. Every
-text from the results is escaped: HTML-escaped in the page, JSON-escaped for `<script>` in the embedded figures.
+Sections (with these ids and headings): summary (the first screen, `analysis.summary`: one verdict banner, one
+sentence per solver family on its best variant, the glossary, the per-family table), accuracy-vs-time (the
+frontier), ladders, outcomes (each scenario's truth outcomes and their convergence), error-parts, error-over-time,
+viewer, time-convergence, stick-slip, remeshing, stability, gate-verdicts, results, any extra sections, provenance.
+Every text from the results is escaped: HTML-escaped in the page, JSON-escaped for `<script>` in the embedded
+figures.
 """
 
 from __future__ import annotations
@@ -22,12 +23,14 @@ import pandas as pd
 from frictionbench.analysis.curves import CUBATURE_MARGIN, FLATTEN_DROP, SUBSPACE_SHARE
 from frictionbench.analysis.derived import remeshing_summary
 from frictionbench.analysis.schema import COLUMNS, OUTCOMES, flag, is_missing, names, stability_metrics, truthy
+from frictionbench.analysis.summary import Summary, capitalised, ladder_mask, summarise, verdict_frame
 from frictionbench.analysis.table import results_frame, variant_labels
 from frictionbench.analysis.truth import UNDECIDABLE_FACTOR
-from frictionbench.reports.headline import headline_table, ranked_variants, truth_summary, verdict_frame
+from frictionbench.reports.glossary import defined, glossary_html
+from frictionbench.reports.headline import headline_table, ranked_variants, truth_summary, with_bounds
 from frictionbench.reports.interactive import page_scripts, plot_div, plotly_version
 from frictionbench.reports.plots import (error_over_time_figure, error_parts_figure, frontier_figure, ladder_figure,
-                           ladder_mask, step_size_figure)
+                                         step_size_figure)
 from frictionbench.reports.viewer import DEFAULT_BUDGET, ViewerBudget, viewer_figure
 from frictionbench.scenarios.atomic import write_text_atomic
 from frictionbench.scenarios.model import Plane
@@ -43,7 +46,14 @@ th, td { border: 1px solid #ccc; padding: .25em .5em; text-align: right; }
 th { background: #f0f0f0; } td.text { text-align: left; }
 td.pass { background: #d7f0d7; } td.fail { background: #f6d0d0; }
 .banner { padding: .6em 1em; border-radius: 4px; font-weight: 600; }
-.banner.pass { background: #d7f0d7; } .banner.fail { background: #f6d0d0; }
+.banner.pass { background: #d7f0d7; } .banner.fail { background: #f6d0d0; } .banner.warn { background: #fbe7b5; }
+td.warn { background: #fbe7b5; } ul.details { margin: .3em 0 .8em; font-size: .9em; }
+ul.answer { font-size: 1.05em; padding-left: 1.2em; } ul.answer li { margin: .35em 0; }
+ul.answer .step { white-space: nowrap; color: #333; background: #eef2f7; border-radius: 3px; padding: 0 .35em; }
+abbr[title] { text-decoration: underline dotted #888; cursor: help; }
+details.glossary-box { margin: .8em 0; font-size: .85em; } details.glossary-box summary { cursor: pointer; }
+dl.glossary { columns: 2; column-gap: 2em; margin: .4em 0; }
+dl.glossary dt { font-weight: 600; break-after: avoid; } dl.glossary dd { margin: 0 0 .4em 1em; break-inside: avoid; }
 .note { color: #555; font-size: .9em; } .scroll { overflow-x: auto; }
 th[data-sort] { background: #dde6f0; } th { cursor: pointer; } input.filter { margin: .4em 0; width: 20em; }
 .headline { font-size: 1.05em; } .headline li { margin: .15em 0; } .plot { width: 100%; }
@@ -98,8 +108,11 @@ def _verdict_class(value: object) -> str:
 
 
 def _table(frame: pd.DataFrame, verdicts: Sequence[str] = ()) -> str:
-    """HTML table of a frame; columns named in verdicts are coloured pass/fail."""
-    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in frame.columns)
+    """HTML table of a frame; columns named in verdicts are coloured pass/fail; a speedup_equal_accuracy that is an
+    upper bound is written `<= x` (`reports.headline.with_bounds`); a heading that names a glossary term has its
+    hover (`reports.glossary.defined`)."""
+    frame = with_bounds(frame)
+    head = "".join(f"<th>{defined(str(c))}</th>" for c in frame.columns)
     body = []
     for row in frame.itertuples(index=False):
         cells = []
@@ -122,47 +135,42 @@ def _columns(frame: pd.DataFrame, wanted: Sequence[str]) -> pd.DataFrame:
     return frame[[c for c in wanted if c in frame.columns]]
 
 
-def _summary(frame: pd.DataFrame, gates: Sequence[object]) -> str:
-    """The headline: what accuracy is measured against, the gates as a count with the failures listed, the
-    failed runs, and per solver family its best variant (`reports.headline.headline_table`)."""
-    parts = [f'<p class="headline">{html.escape(truth_summary(frame))}</p>', '<ul class="headline">']
-    verdicts = verdict_frame(gates)
-    if verdicts.empty:
-        parts.append("<li>No gates were evaluated for these results.</li>")
+def _summary(frame: pd.DataFrame, gates: Sequence[object], summary: Summary) -> str:
+    """The first screen (`analysis.summary.Summary`): one banner with the verdict in words, one sentence per solver
+    family with its per-step speedup beside it, what accuracy is measured against, the glossary, then per family
+    its best variant's figures (`reports.headline.headline_table`). The first use of each glossary term has a hover
+    with its definition."""
+    seen: set[str] = set()
+    b = summary.banner
+    parts = [f'<p class="banner {b.level}" id="verdict">{defined(b.headline, seen)}</p>']
+    if b.details:
+        parts.append('<ul class="details">' + "".join(f"<li>{defined(d, seen)}</li>" for d in b.details) + "</ul>")
+    if summary.families:
+        items = []
+        for f in summary.families:
+            step = (f' <span class="step">{defined(f.step_speedup_text, seen)}</span>' if f.step_speedup_text
+                    else "")
+            sentence = defined(capitalised(f.sentence), seen)
+            if f.chosen is not None:  # the chosen variant stands out
+                label = html.escape(f.chosen.label)
+                sentence = sentence.replace(label, f"<b>{label}</b>", 1)
+            items.append(f"<li><b>{html.escape(f.family)}</b>: {sentence}.{step}</li>")
+        parts.append('<ul class="answer">' + "".join(items) + "</ul>")
     else:
-        advisory = (verdicts["advisory"].fillna(False).astype(bool) if "advisory" in verdicts
-                    else pd.Series(False, index=verdicts.index))
-        binding = verdicts[~advisory]
-        counts = binding["status"].value_counts()
-        n_pass, n_fail, n_und = (int(counts.get(k, 0)) for k in ("passed", "failed", "undecidable"))
-        ok = n_fail == 0
-        undecidable = f", {n_und} undecidable (neither passed nor failed: the verdicts say why)" if n_und else ""
-        parts.append(f'<li><span class="banner {"pass" if ok else "fail"}">'
-                     + html.escape(f"Gates: {n_pass} of {len(binding)} passed"
-                                   f"{'' if ok else f', {n_fail} failed'}{undecidable}.") + "</span></li>")
-        failed = binding[binding["status"] == "failed"]
-        if not failed.empty:
-            items = [html.escape(", ".join(str(r[k]) for k in ("gate", "scenario", "variant", "metric")
-                                           if k in r and not is_missing(r[k]))
-                                 + (f": {_cell_text(r['value'])} (limit {r['limit']})"
-                                    if "value" in r and "limit" in r else ""))
-                     for _, r in failed.head(MAX_LISTED).iterrows()]
-            more = (f"<li>and {len(failed) - MAX_LISTED} more (see Gate verdicts)</li>"
-                    if len(failed) > MAX_LISTED else "")
-            parts.append("<li>Failed gates:<ul>" + "".join(f"<li>{i}</li>" for i in items) + more + "</ul></li>")
-        if advisory.any():
-            adv = verdicts[advisory]
-            parts.append(f"<li>Advisory checks (judged, not enforced; see Stability): "
-                         f"{int((adv['status'] == 'passed').sum())} of {len(adv)} passed.</li>")
-    failed_runs = int((frame["status"].fillna("ok") != "ok").sum()) if "status" in frame else 0
-    parts.append(f"<li>{len(frame)} result rows, {failed_runs} failed runs.</li></ul>")
-    table = headline_table(frame, gates)
-    if table.empty:
         parts.append(_note("No solver rows in these results."))
-    else:
-        parts.append(_note("Per solver family, its best variant (lowest median error over its finished runs); "
-                           "stable runs: finished with finite positions, every step converged and every "
-                           "stability check of its case passed.") + _table(table))
+    parts.append(f'<p class="headline">{defined(truth_summary(summary.truth), seen)} '
+                 f"{defined(capitalised(summary.gates.text()), seen)}; {summary.runs.rows} result rows, "
+                 f"{summary.runs.failed} failed runs.</p>")
+    parts.append('<details class="glossary-box" open><summary>Terms used on this page (hover a dotted term for '
+                 "its definition)</summary>" + glossary_html() + "</details>")
+    table = headline_table(frame, gates, summary.families)
+    if not table.empty:
+        parts.append(_note("Per solver family, its best variant, chosen on the family's accuracy-cost frontier "
+                           "(among the variants no other of the family is both cheaper and more accurate than, the "
+                           "largest measured speedup at equal accuracy; where every one is an upper bound, the "
+                           "closest to the full-space accuracy), and its medians over its finished runs; stable "
+                           "runs: finished with finite positions, every step converged and every stability check "
+                           "of its case passed.") + _table(table))
     return "\n".join(parts)
 
 
@@ -407,40 +415,56 @@ def _stability(frame: pd.DataFrame, gates: Sequence[object]) -> str:
             + _table(table, verdicts=[c for c in stability if COLUMNS[c].better == "true"]))
 
 
+#: The stability matrix's cell kinds, most severe first: (prefix, verdicts it lists, CSS class).
+_CASE_KINDS = (("fail", "binding failed", "fail"), ("advisory fail", "advisory failed", "warn"),
+               ("undecidable", "undecidable", "warn"))
+
+
 def _stability_matrix(gates: Sequence[object]) -> str:
-    """Case x solver variant: `pass`, or the metrics whose gates failed (from the gate verdicts)."""
+    """Case x solver variant: `pass`, or the metrics whose binding gates failed (red), whose advisory checks failed
+    and whose verdicts are undecidable (amber), from the gate verdicts: the colours the summary's banner takes
+    (`analysis.summary.banner`)."""
     verdicts = verdict_frame(gates)
     if verdicts.empty or not {"scenario", "variant", "metric"} <= set(verdicts):
         return _note("No gates apply to this suite, so no case is judged here.")
     verdicts = verdicts[verdicts["scenario"] != "(none)"]
+    verdicts = verdicts.assign(kind=np.where(verdicts["status"] == "undecidable", "undecidable",
+                                             np.where(verdicts["advisory"], "advisory ", "binding ")
+                                             + verdicts["status"].astype(str)))
     keys = ["scenario", "variant"]
-
-    def metrics_with(status: str) -> pd.Series:
-        """Per case, the metrics whose verdicts have this status (comma-separated)."""
-        return (verdicts[verdicts["status"] == status].groupby(keys)["metric"]
-                .apply(lambda m: ", ".join(sorted(set(m)))))
-
-    cells = pd.Series("pass", index=verdicts.groupby(keys).size().index)
-    undecidable, failed = metrics_with("undecidable"), metrics_with("failed")
-    cells.loc[undecidable.index] = "undecidable: " + undecidable
-    cells.loc[failed.index] = "fail: " + failed
-    matrix = cells.unstack("variant").fillna("")
-    matrix = matrix[sorted(matrix.columns, key=lambda c: (not str(c).startswith("full/"), str(c)))]  # full first
-    counts = (matrix == "pass").sum().astype(str) + " / " + (matrix != "").sum().astype(str)
-    matrix = pd.concat([matrix, counts.to_frame("cases passed").T]).reset_index(names="scenario")
-    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in matrix.columns)
+    cases = verdicts.groupby(keys)
+    cells, classes = {}, {}
+    for key, g in cases:
+        listed = [f"{prefix}: {', '.join(sorted(set(g.loc[g['kind'] == kind, 'metric'].astype(str))))}"
+                  for prefix, kind, _ in _CASE_KINDS if (g["kind"] == kind).any()]
+        cells[key] = "; ".join(listed) or "pass"
+        classes[key] = next((cls for _, kind, cls in _CASE_KINDS if (g["kind"] == kind).any()), "pass")
+    index = pd.MultiIndex.from_tuples(list(cells), names=keys)
+    matrix = pd.Series(list(cells.values()), index=index).unstack("variant").fillna("")
+    kinds = pd.Series(list(classes.values()), index=index).unstack("variant").fillna("")
+    order = sorted(matrix.columns, key=lambda c: (not str(c).startswith("full/"), str(c)))  # full first
+    matrix, kinds = matrix[order], kinds[order]
+    head = "".join(f"<th>{defined(str(c))}</th>" for c in ["scenario", *matrix.columns])
     body = []
-    for _, row in matrix.iterrows():
-        tds = [f'<td class="text">{html.escape(str(row["scenario"]))}</td>']
-        for c in matrix.columns[1:]:
-            v = str(row[c])
-            cls = "text pass" if v == "pass" else "text fail" if v.startswith("fail") else "text"
-            tds.append(f'<td class="{cls}">{html.escape(v)}</td>')
+    for scenario, row in matrix.iterrows():
+        tds = [f'<td class="text">{html.escape(str(scenario))}</td>']
+        for c in matrix.columns:
+            cls = kinds.loc[scenario, c]
+            tds.append(f'<td class="text {cls}">{html.escape(str(row[c]))}</td>' if cls
+                       else '<td class="text"></td>')
         body.append("<tr>" + "".join(tds) + "</tr>")
+    tally = []
+    for c in matrix.columns:
+        judged = kinds[c][kinds[c] != ""]
+        n_pass, n_fail = int((judged == "pass").sum()), int((judged == "fail").sum())
+        cls = "fail" if n_fail else "warn" if n_pass < len(judged) else "pass"
+        tally.append(f'<td class="text {cls}">{n_pass} of {len(judged)} passed, {n_fail} failed</td>')
+    body.append('<tr><td class="text">cases</td>' + "".join(tally) + "</tr>")
     return (_note("Cases against the gates and advisory checks (gates.toml) per solver variant and contact law: "
-                  "pass, or the metrics that failed (or, where none failed, those undecidable: an accuracy "
-                  "threshold below 3x an uncertified truth's error estimate, or a speed limit met only by an "
-                  "upper bound).")
+                  "pass, or the metrics whose binding gates failed (red: the banner's failures), whose advisory "
+                  "checks failed (amber: reported, not enforced) and whose verdicts are undecidable (amber: an "
+                  f"accuracy threshold below {UNDECIDABLE_FACTOR:g}x an uncertified truth's error estimate, or a "
+                  "speed limit met only by an upper bound).")
             + f'<div class="scroll"><table class="stability-matrix">\n<thead><tr>{head}</tr></thead>\n<tbody>\n'
             + "\n".join(body) + "\n</tbody>\n</table></div>")
 
@@ -506,7 +530,7 @@ def comparison_section(comparison: pd.DataFrame, baseline: str, max_rows: int = 
 def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], out_dir: str | os.PathLike, *,
                       gates: Sequence[object] = (), runs: Sequence[ScenarioRuns] = (),
                       extra_sections: Sequence[tuple[str, str]] = (), title: str = "frictionbench report",
-                      viewer: ViewerBudget = DEFAULT_BUDGET) -> Path:
+                      viewer: ViewerBudget = DEFAULT_BUDGET, summary: Summary | None = None) -> Path:
     """Write `out_dir/report.html` atomically and return its path.
 
     results: the results table (a DataFrame as read from results.csv, or its rows).
@@ -516,11 +540,13 @@ def write_report_html(results: pd.DataFrame | Sequence[Mapping[str, object]], ou
     extra_sections: (heading, HTML fragment) pairs appended before the provenance; the fragments are inserted
         as given, so they must be trusted and self-contained.
     viewer: the 3D viewers' frame and triangle budget.
+    summary: the first screen's answer (`analysis.summary.summarise` of the results and gates; computed when None).
     """
     frame = results.copy() if isinstance(results, pd.DataFrame) else results_frame(results)
+    summary = summarise(frame, gates) if summary is None else summary
     no_runs = _note("No trajectories were given to the report.")
     sections = [
-        ("summary", "Summary", _summary(frame, gates)),
+        ("summary", "Summary", _summary(frame, gates, summary)),
         ("accuracy-vs-time", "Accuracy versus time", _frontier(frame)),
         ("ladders", "Ground-truth ladders", _ladders(frame)),
         ("outcomes", "Outcomes against the truth", _outcomes(frame)),

@@ -48,7 +48,7 @@ BOOT_JS = """
         var rows = Array.prototype.slice.call(body.rows);
         var key = function (r) {
           var s = r.cells[col] ? r.cells[col].textContent.trim() : "";
-          var v = Number(s);
+          var v = Number(s.replace(/^<=\\s*/, ""));  // an upper bound `<= x` sorts as x
           return s === "" || s === "\\u2013" ? [2, 0] : isNaN(v) ? [1, s] : [0, v];
         };
         rows.sort(function (a, b) {

@@ -7,11 +7,11 @@ renders a subset of HTML in names and hover texts.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from frictionbench.analysis.summary import accuracy_columns, ladder_mask, numeric_column
 from frictionbench.analysis.table import variant_labels
 from frictionbench.reports.interactive import text
 
@@ -31,44 +31,6 @@ FAMILY_RAMPS = (("#08306b", "#08519c", "#2171b5", "#4292c6", "#6baed6", "#9ecae1
 #: Marker symbols, one per solver family in the frontier (with its colour ramp, tells the families apart).
 SYMBOLS = ("circle", "square", "diamond", "triangle-up", "cross", "x", "star", "hexagon", "pentagon",
            "triangle-down")
-
-
-@dataclass(frozen=True)
-class AccuracyColumns:
-    """Which result columns measure accuracy and cost: against the ground truth when the results have one.
-
-    error: `err_truth`, else `pos_rmse_rel` (against the same-dt reference); cost: `wall_s_per_sim_s` (stepping
-    wall time per simulated second), else `step_ms_median`; speedup: `speedup_equal_accuracy`, else the step-time
-    `speedup`; truth: whether err_truth has values.
-    """
-
-    error: str
-    cost: str
-    speedup: str
-    truth: bool
-
-
-def numeric_column(frame: pd.DataFrame, column: str) -> pd.Series:
-    """The column as floats (NaN where missing or not a number; all NaN when the column is absent)."""
-    if column not in frame:
-        return pd.Series(np.nan, index=frame.index, dtype=float)
-    return pd.to_numeric(frame[column], errors="coerce").astype(float)
-
-
-def accuracy_columns(frame: pd.DataFrame) -> AccuracyColumns:
-    """The accuracy and cost columns of these results (see `AccuracyColumns`)."""
-    truth = bool(np.isfinite(numeric_column(frame, "err_truth")).any())
-    wall = numeric_column(frame, "wall_s_per_sim_s")
-    return AccuracyColumns(error="err_truth" if truth else "pos_rmse_rel",
-                           cost="wall_s_per_sim_s" if bool((wall > 0).any()) else "step_ms_median",
-                           speedup="speedup_equal_accuracy" if truth else "speedup", truth=truth)
-
-
-def ladder_mask(frame: pd.DataFrame) -> pd.Series:
-    """True on the rows of a ground-truth ladder (a non-empty `ladder` column)."""
-    if "ladder" not in frame:
-        return pd.Series(False, index=frame.index)
-    return frame["ladder"].fillna("").astype(str).str.strip() != ""
 
 
 def pareto_front(x: np.ndarray, y: np.ndarray, x_higher_is_better: bool = False) -> np.ndarray:

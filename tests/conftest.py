@@ -21,6 +21,15 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 threadpool_limits(1)
 
 
+@pytest.fixture(autouse=True)
+def private_truth_store(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Every test has a truth store of its own (`bench.store.TruthStore`), empty at its start: no test reads truths
+    another test or an earlier session left, and none writes the user's; returns its folder."""
+    root = tmp_path_factory.mktemp("truths")
+    monkeypatch.setenv("FRICTIONBENCH_TRUTH_STORE", str(root))
+    return root
+
+
 @pytest.fixture(scope="session")
 def block():
     """The coarse structured block (0.2 x 0.1 x 0.2 m)."""

@@ -42,8 +42,10 @@ def test_a_task_without_a_result_is_raised_once_the_others_are_stored(tmp_path, 
     from frictionbench.scenarios.load import scenario_from_dict
 
     class InThread(ThreadPoolExecutor):
+        slots = 1
         share = staticmethod(lambda obj: obj)
         as_completed = staticmethod(lambda futures: as_completed(list(futures)))
+        abandon = staticmethod(lambda futures: None)
 
     def execute(task, *args):
         if task.scenario.plane.friction == 0.6:

@@ -30,7 +30,7 @@ from frictionbench.analysis.table import (
     write_results_csv,
 )
 from frictionbench.reports.export import export_vtu_series
-from frictionbench.reports.headline import BEST_AT, BEST_SPEEDUP, headline_table
+from frictionbench.reports.headline import BASIS, BEST_AT, BEST_SPEEDUP, SPEEDUP, headline_table
 from frictionbench.reports.html import ScenarioRuns, write_report_html
 from frictionbench.reports.interactive import plot_div, plotly_js, script_json, typed_array
 from frictionbench.reports.plots import FAMILY_RAMPS, frontier_figure, pareto_front
@@ -226,9 +226,15 @@ def test_html_report_is_self_contained(tmp_path: Path, runs) -> None:
                                 "Remeshing", "Stability", "Gate verdicts", "Results", "Notes", "Provenance"]
     assert page.count(plotly_js()) == 1  # plotly.js inline, once
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
-    assert "Gates: 1 of 2 passed, 1 failed." in summary
-    assert "speed, slide, pod/r16, speedup: 3 (limit &gt;= 5)" in summary  # the failure listed
-    assert "No ground truth in this result set" in summary
+    assert '<p class="banner fail" id="verdict">' in summary  # one banner, red: a binding gate and a run failed
+    assert summary.count('class="banner') == 1
+    text = re.sub(r"<abbr title=\"[^\"]*\">|</abbr>", "", summary)  # the words, without the glossary's hovers
+    assert "1 of 2 binding gates failed; 1 of 5 runs failed." in text
+    assert "Binding gates failed: pod/r16 speedup on slide: 3 (limit &gt;= 5)." in text  # the failure listed
+    assert "Runs failed: slide [licrom/r64]: Newton did not converge at t=0.3." in text
+    assert "No ground truth in these results, so <b>licrom/r16</b> is chosen by its error" in text
+    assert '<span class="step">per-step speedup 20x</span>' in text
+    assert "No ground truth in this result set" in text
     assert "Newton did not converge at t=0.3" in page
     assert 'class="fail"' in page and 'class="pass"' in page
     assert "block/coarse_alt" in page  # remeshing table
@@ -270,19 +276,20 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     frame = pd.DataFrame(rows)
     gates = [{"gate": "acc", "scenario": "slope", "variant": "licrom/r20", "metric": "err_truth", "passed": False,
               "status": "undecidable", "value": 0.03, "limit": "<= 0.01"},
-             {"gate": "fin", "scenario": "drop", "variant": "licrom/r20", "metric": "finite", "passed": False,
+             {"gate": "fin", "scenario": "drop", "variant": "licrom/r10", "metric": "finite", "passed": False,
               "status": "failed", "value": False, "limit": "= true"}]
     table = headline_table(frame, gates).set_index("solver")
     assert list(table.index) == ["full", "licrom", "pod"]  # no ladder family, no ladder variant
-    assert table.loc["licrom", "best variant"] == "licrom/r20"
-    assert table.loc["licrom", "median err_truth"] == pytest.approx(0.03)
-    assert table.loc["licrom", "median speedup_equal_accuracy"] == pytest.approx(25.0)
-    assert table.loc["licrom", "stick/slip agreement"] == "2 of 2"
+    # chosen on the frontier: r10 (8% of L, 30x) and r20 (3%, 25x) are both on it; r10's measured speed-up is larger
+    assert table.loc["licrom", "best variant"] == "licrom/r10"
+    assert table.loc["licrom", "chosen as"] == BASIS["measured"]
+    assert table.loc["licrom", "median err_truth"] == pytest.approx(0.08)
+    assert table.loc["licrom", SPEEDUP] == pytest.approx(30.0)
+    assert table.loc["licrom", "stick/slip agreement"] == "0 of 2"
     assert table.loc["licrom", "stable runs"] == "1 of 2"  # drop's finite check failed
     assert table.loc["pod", "stable runs"] == "1 of 2"  # slope's run failed
     assert table.loc["pod", "truth certified"] == "1 of 2 scenarios"
-    assert table.loc["pod", "frontier note"] == "less accurate than every ladder level (2)"
-    assert pd.isna(table.loc["licrom", "frontier note"])
+    assert pd.isna(table.loc["pod", SPEEDUP]) and table.loc["pod", "chosen as"] == BASIS["accuracy"]
     # the family's best measured speed-up at equal accuracy, over every variant and scenario, and where it holds;
     # none where every speed-up is an upper bound (a frontier note)
     assert table.loc["licrom", BEST_SPEEDUP] == pytest.approx(30.0)
@@ -298,7 +305,13 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
     summary = page[page.index('id="summary"'):page.index('id="accuracy-vs-time"')]
     assert "certified on 1" in summary and "No ground truth" not in summary
     assert "not certified: slope (within tolerance up to t = 0.55 s)" in summary
-    assert "Gates: 0 of 2 passed, 1 failed, 1 undecidable" in summary
+    text = re.sub(r"<abbr title=\"[^\"]*\">|</abbr>", "", summary)  # the words, without the glossary's hovers
+    assert "Binding gates: 0 of 2 passed, 1 failed, 1 undecidable" in text
+    assert '<p class="banner fail" id="verdict">1 of 2 binding gates failed; 1 of 16 runs failed.</p>' in text
+    assert ("Undecidable (neither passed nor failed): licrom/r20 err_truth on slope: 0.03 (limit &lt;= 0.01)."
+            in text)
+    assert ("<b>licrom/r10</b> costs 1 s per simulated second, 30 times less than the full-space solver at the same "
+            "accuracy" in text)
     stability = page[page.index('id="stability"'):page.index('id="gate-verdicts"')]
     assert "undecidable: err_truth" in stability and "fail: finite" in stability
     figs = figures(page)
@@ -318,10 +331,10 @@ def test_headline_with_ground_truth_columns(tmp_path: Path) -> None:
 def test_headline_without_ground_truth_falls_back_to_the_reference(runs) -> None:
     frame = pd.DataFrame(result_rows(runs))
     table = headline_table(frame).set_index("solver")
-    assert {"median pos_rmse_rel", "median speedup"} <= set(table.columns)
+    assert {"median pos_rmse_rel", "per-step speedup"} <= set(table.columns)
     assert not any("err_truth" in c for c in table.columns)
     assert table.loc["licrom", "best variant"] == "licrom/r16"  # r64 failed: no error
-    assert table.loc["licrom", "median speedup"] == pytest.approx(20.0)
+    assert table.loc["licrom", "per-step speedup"] == pytest.approx(20.0)
     assert (table["truth certified"] == "no truth").all()
     assert BEST_SPEEDUP not in table  # no truth, no speed-up at equal accuracy
 

@@ -55,6 +55,13 @@ def test_a_registered_toy_solver_runs_in_the_matrix(ballistic, tmp_path, capsys)
     out = tmp_path / "out"
     assert main(["list"]) == 0 and "ballistic" in capsys.readouterr().out
     assert main(["run", "--suite", str(suite), "--solvers", "ballistic", "--out", str(out), "--no-report"]) == 0
+    # the run ends with its answer in a few lines: the verdict first (a failed run: red), one line per family
+    printed = capsys.readouterr().out.splitlines()
+    tail = printed[printed.index("") + 1:]
+    assert tail[0] == "FAILED: 1 of 4 runs failed."
+    assert [ln.split(":")[0] for ln in tail if ln[:2] == "  " and ln[2] != " "] == ["  ballistic", "  full"]
+    assert "Runs: 1 of 4 failed" not in "\n".join(tail) and "runs: 1 of 4 failed." in tail[-1]
+    assert len(tail) <= 8
     rows = pd.read_csv(out / "results.csv").set_index(["scenario", "solver"])
     assert set(rows.index) == {("toy/fall", "full"), ("toy/drop", "full"), ("toy/fall", "ballistic"),
                                ("toy/drop", "ballistic")}
