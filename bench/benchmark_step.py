@@ -4,6 +4,14 @@ the reduced (LiCROM, Newton) step beside it.
     python -m frictionbench.bench.benchmark_step --out out/bench_step.json
     python -m frictionbench.bench.benchmark_step --cases hard/E1e9 --steps 3 --configs superlu:1 pardiso:1
     python -m frictionbench.bench.benchmark_step --cases paper/cheese_p1_mu0.5 --configs pardiso:1
+    python -m frictionbench.bench.benchmark_step --cases quick-damped/p1_mu0.5 --configs pardiso:1 --truth 2 \
+        --reduced
+
+With `--truth K [K ...]`, each case also steps at its suite's truth-ladder settings at level K (`[truth]`: its
+integrator and contact lag, dt / 2^K, `bench.runner.ladder_variant`) from the same mid-contact state, the first
+configuration's linear solver and threads, over the same simulated time (`--steps` x 2^K steps): iterations, contact
+lag solves (`lag_solves`: a fixed-point lag's solves) and ms per step and per simulated second beside the
+reference settings', so that the truth's cost per step is measured where the main job spends it.
 
 Each case (a suite member) is advanced with the default solver until a contact point first penetrates the plane,
 then `--settle` steps more: the mid-contact state. From it every configuration (`linear:threads`: the linear
@@ -50,7 +58,9 @@ from frictionbench.solvers.licrom.reduced import ReducedSolver
 from frictionbench.analysis.table import provenance
 from frictionbench.bench.cli import resolve_scenario
 from frictionbench.scenarios.atomic import write_json_atomic
+from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.scenarios.model import Scenario
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.model import Model, State, build_model, initial_state
 
@@ -112,16 +122,19 @@ def mid_contact_state(model: Model, settle: int, max_steps: int = 1000) -> tuple
     return state, k, np.asarray(frames)
 
 
-def _stepped(solver: FullSpaceSolver | ReducedSolver, state: State, dt: float, steps: int
-             ) -> tuple[State, list[float], list[int]]:
+def _stepped(solver: FullSpaceSolver | ReducedSolver, state: State, dt: float, steps: int,
+             counters: dict[str, int] | None = None) -> tuple[State, list[float], list[int]]:
     """Advance `state` by `steps` steps of `solver` (dt [s]); the end state, each step's wall time [s] and Newton
-    iterations."""
+    iterations; the steps' counters (`StepStats.counters`) are summed into `counters` where given."""
     walls, iters = [], []
     for _ in range(steps):
         out = State(state.x, state.v, state.t)
         st = solver.step(state, out, dt)
         walls.append(st.wall_s)
         iters.append(st.iterations)
+        if counters is not None:
+            for name, count in st.counters.items():
+                counters[name] = counters.get(name, 0) + count
         state = out
     return state, walls, iters
 
@@ -139,10 +152,14 @@ def run_config(model: Model, state: State, linear: str, threads: int, steps: int
         if linear != "cg":
             clock.wrap(solver.factoriser, "factorize", "factorisation")
             clock.wrap(solver.factoriser, "solve", "solve")
-        state, walls, iters = _stepped(solver, state, dt, steps)
+        counters: dict[str, int] = {}
+        state, walls, iters = _stepped(solver, state, dt, steps, counters)
     ms = {f"{p}_ms": 1e3 * totals[p] / steps for p in PARTS}
     step_ms = 1e3 * float(np.mean(walls))
     return {"linear": linear, "linear_solver": solver.info["linear_solver"], "threads": threads,
+            "dt": dt, "integrator": model.scenario.time.integrator, "contact_lag": model.scenario.contact.lag,
+            "lag_solves_per_step": counters.get("lag_solves", steps) / steps,
+            "wall_s_per_sim_s": float(np.sum(walls)) / (steps * dt),
             "assembly_threads": solver.info["assembly_threads"], "step_ms": step_ms,
             "factor_nnz": getattr(solver.factoriser, "factor_nnz", None) if linear != "cg" else None,
             "step_ms_per_step": [1e3 * w for w in walls], "newton_iters": iters,
@@ -228,10 +245,38 @@ def run_reduced(model: Model, state: State, W: np.ndarray, cub: tuple, modes: li
     return [run.record() for run in runs]
 
 
+def truth_scenario(name: str, level: int) -> Scenario:
+    """Suite member `name`'s scenario at its suite's truth-ladder settings, level `level` (dt / 2^level)."""
+    from frictionbench.bench.runner import ladder_variant
+    from frictionbench.scenarios.suites import load_suite
+
+    suite = load_suite(name.split("/", 1)[0])
+    if suite.truth is None:
+        raise ScenarioError("--truth", name, f"suite {suite.name} has no [truth] table")
+    if suite.truth.kind != "step":
+        raise ScenarioError("--truth", name, f"suite {suite.name}'s truth is a {suite.truth.kind} ladder, not steps")
+    member = next(m.scenario for m in suite.scenarios if m.scenario.name == name)
+    spec = suite.truth
+    return ladder_variant(member, spec.integrator, level, lag=spec.contact_lag).scenario(member)
+
+
+def _print_full(name: str, cfg: str, r: dict) -> None:
+    print(f"{name:24s} {cfg:15s} {r['step_ms']:8.1f} ms/step ({r['speedup']:4.1f}x)  "
+          f"it/step {np.mean(r['newton_iters']):4.1f}  solves/step {r['lag_solves_per_step']:4.2f}  "
+          f"{r['wall_s_per_sim_s']:6.1f} s/sim s  per step: assembly {r['assembly_ms']:6.1f}  "
+          f"factor {r['factorisation_ms']:7.1f}  solve {r['solve_ms']:5.1f}  line search "
+          f"{r['line_search_ms']:5.1f}  other {r['other_ms']:5.1f} ms  |dx_end|/L {r['x_end_diff_rel']:.1e}",
+          flush=True)
+
+
 def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, reduced: list[str] | None = None,
-              reduced_steps: int = 40, rank: int = 24, cubature: int = 60, repeats: int = 3) -> list[dict]:
-    """One record per case x configuration (see the module doc), the full-space ones then the reduced ones;
-    speedup = first configuration's step time / this one's, in this run."""
+              reduced_steps: int = 40, rank: int = 24, cubature: int = 60, repeats: int = 3,
+              truth_levels: list[int] | None = None) -> list[dict]:
+    """One record per case x configuration (see the module doc), then per truth level (`truth_levels`: the
+    suite's truth settings at those levels, in the first configuration), then the reduced ones; speedup = first
+    configuration's step time / this one's, in this run (for a truth level: its wall_s_per_sim_s over the first
+    configuration's, below 1 where the truth costs more per simulated second); x_end_diff_rel against the first
+    configuration's end state (the same simulated time)."""
     records = []
     for name in cases:
         sc = resolve_scenario(name)
@@ -243,16 +288,24 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, red
             r = run_config(model, state, linear, int(threads or 1), steps)
             x_end = r.pop("x_end")
             if base_x is None:
-                base_ms, base_x = r["step_ms"], x_end
+                base_ms, base_x, base_sim = r["step_ms"], x_end, r["wall_s_per_sim_s"]
             r |= {"case": name, "mesh": sc.mesh.key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
                   "from_step": k, "steps": steps, "speedup": base_ms / r["step_ms"],
                   "x_end_diff_rel": float(np.abs(x_end - base_x).max() / model.L)}
             records.append(r)
-            print(f"{name:24s} {cfg:11s} {r['step_ms']:8.1f} ms/step ({r['speedup']:4.1f}x)  "
-                  f"it/step {np.mean(r['newton_iters']):4.1f}  per step: assembly {r['assembly_ms']:6.1f}  "
-                  f"factor {r['factorisation_ms']:7.1f}  solve {r['solve_ms']:5.1f}  line search "
-                  f"{r['line_search_ms']:5.1f}  other {r['other_ms']:5.1f} ms  |dx_end|/L {r['x_end_diff_rel']:.1e}",
-                  flush=True)
+            _print_full(name, cfg, r)
+        linear, _, threads = configs[0].partition(":")
+        for level in truth_levels or ():
+            sc_t = truth_scenario(name, level)
+            r = run_config(build_model(sc_t, load_mesh(sc_t.mesh)), state, linear, int(threads or 1),
+                           steps * 2 ** level)
+            x_end = r.pop("x_end")
+            r |= {"case": name, "mesh": sc.mesh.key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
+                  "from_step": k, "steps": steps * 2 ** level, "truth_level": level,
+                  "speedup": base_sim / r["wall_s_per_sim_s"],
+                  "x_end_diff_rel": float(np.abs(x_end - base_x).max() / model.L)}
+            records.append(r)
+            _print_full(name, f"truth:{level}:{configs[0]}", r)
         if reduced:
             W, cub = reduced_setup(model, frames, rank, cubature)
             all_ms = all_x = None
@@ -289,15 +342,19 @@ def main() -> None:
     p.add_argument("--r", type=int, default=24, help="reduced basis columns (12 affine + POD)")
     p.add_argument("--cubature", type=int, default=60, help="optimised cubature tets of the reduced step")
     p.add_argument("--repeats", type=int, default=3, help="runs of each reduced step, the fastest kept")
+    p.add_argument("--truth", nargs="*", type=int, default=[], metavar="K",
+                   help="also step at the suite's truth-ladder settings at these levels (dt / 2^K)")
     p.add_argument("--out", default="out/bench_step.json")
     a = p.parse_args()
+    if any(k < 0 or k > 12 for k in a.truth):
+        p.error(f"--truth: levels between 0 and 12, got {a.truth}")
     records = benchmark(a.cases, a.configs, a.steps, a.settle, a.reduced, a.reduced_steps, a.r, a.cubature,
-                        a.repeats)
+                        a.repeats, a.truth)
     write_json_atomic(a.out, {"records": records, "provenance": provenance("cpu"),
                               "command": {"cases": a.cases, "configs": a.configs, "steps": a.steps,
                                           "settle": a.settle, "reduced": a.reduced,
                                           "reduced_steps": a.reduced_steps, "r": a.r, "cubature": a.cubature,
-                                          "repeats": a.repeats}})
+                                          "repeats": a.repeats, "truth": a.truth}})
 
 
 if __name__ == "__main__":

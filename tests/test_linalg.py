@@ -165,6 +165,23 @@ def test_the_step_benchmark_breaks_a_contact_step_down_for_each_solver():
     assert records[0]["newton_iters"] == records[1]["newton_iters"]
 
 
+@needs_pardiso
+def test_the_step_benchmark_steps_the_truth_settings_beside_the_reference_settings():
+    from frictionbench.bench.benchmark_step import benchmark, truth_scenario
+    from frictionbench.scenarios.errors import ScenarioError
+
+    ref, truth = benchmark(["quick-damped/p1_mu0.5"], ["pardiso:1"], steps=1, settle=1, truth_levels=[1])
+    assert (ref["integrator"], ref["contact_lag"], ref["lag_solves_per_step"]) == ("backward-euler", "start", 1.0)
+    # level 1 of quick-damped's truth: BDF2 at dt/2 with the contact lag at each step's fixed point, two steps for
+    # the reference's one (the same simulated time), each one or more solves
+    assert (truth["truth_level"], truth["integrator"], truth["contact_lag"]) == (1, "bdf2", "fixed-point")
+    assert truth["dt"] == ref["dt"] / 2 and truth["steps"] == 2 and len(truth["newton_iters"]) == 2
+    assert truth["lag_solves_per_step"] >= 1 and truth["wall_s_per_sim_s"] > 0
+    assert truth["speedup"] == ref["wall_s_per_sim_s"] / truth["wall_s_per_sim_s"]
+    with pytest.raises(ScenarioError, match="no \\[truth\\] table"):
+        truth_scenario("hard/E1e9", 0)
+
+
 def test_simulate_selects_the_linear_solver_and_stats_json_says_which_ran(tmp_path):
     import io
     import json
