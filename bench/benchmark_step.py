@@ -8,10 +8,10 @@ the reduced (LiCROM, Newton) step beside it.
         --reduced
 
 With `--truth K [K ...]`, each case also steps at its suite's truth-ladder settings at level K (`[truth]`: its
-integrator and contact lag, dt / 2^K, `bench.runner.ladder_variant`) from the same mid-contact state, the first
-configuration's linear solver and threads, over the same simulated time (`--steps` x 2^K steps): iterations, contact
-lag solves (`lag_solves`: a fixed-point lag's solves) and ms per step and per simulated second beside the
-reference settings', so that the truth's cost per step is measured where the main job spends it.
+integrator, contact lag and Newton tolerance, dt / 2^K, `bench.runner.ladder_variant`) from the same mid-contact
+state, the first configuration's linear solver and threads, over the same simulated time (`--steps` x 2^K steps):
+iterations, contact lag solves (`lag_solves`: a fixed-point lag's solves) and ms per step and per simulated second
+beside the reference settings', so that the truth's cost per step is measured where the main job spends it.
 
 Each case (a suite member) is advanced with the default solver until a contact point first penetrates the plane,
 then `--settle` steps more: the mid-contact state. From it every configuration (`linear:threads`: the linear
@@ -139,11 +139,13 @@ def _stepped(solver: FullSpaceSolver | ReducedSolver, state: State, dt: float, s
     return state, walls, iters
 
 
-def run_config(model: Model, state: State, linear: str, threads: int, steps: int) -> dict:
-    """Step `steps` steps from `state` with one configuration; per-step means [ms] of each part, iterations."""
+def run_config(model: Model, state: State, linear: str, threads: int, steps: int, params: dict | None = None
+               ) -> dict:
+    """Step `steps` steps from `state` with one configuration (`params`: further NewtonSettings fields, e.g. a
+    truth ladder's tol); per-step means [ms] of each part, iterations."""
     dt = model.scenario.time.dt
     with threadpool_limits(threads):
-        solver = FullSpaceSolver(model, settings=NewtonSettings(linear=linear))
+        solver = FullSpaceSolver(model, settings=NewtonSettings(linear=linear, **(params or {})))
         solver.step(state, State(state.x, state.v, state.t), dt)  # warm-up (kernel loading, PARDISO analysis)
         clock = _Clock()
         totals = clock.totals
@@ -245,8 +247,9 @@ def run_reduced(model: Model, state: State, W: np.ndarray, cub: tuple, modes: li
     return [run.record() for run in runs]
 
 
-def truth_scenario(name: str, level: int) -> Scenario:
-    """Suite member `name`'s scenario at its suite's truth-ladder settings, level `level` (dt / 2^level)."""
+def truth_scenario(name: str, level: int) -> tuple[Scenario, dict]:
+    """Suite member `name`'s scenario at its suite's truth-ladder settings, level `level` (dt / 2^level), and the
+    ladder runs' solver parameters (`TruthSpec.solver_params`)."""
     from frictionbench.bench.runner import ladder_variant
     from frictionbench.scenarios.suites import load_suite
 
@@ -257,7 +260,7 @@ def truth_scenario(name: str, level: int) -> Scenario:
         raise ScenarioError("--truth", name, f"suite {suite.name}'s truth is a {suite.truth.kind} ladder, not steps")
     member = next(m.scenario for m in suite.scenarios if m.scenario.name == name)
     spec = suite.truth
-    return ladder_variant(member, spec.integrator, level, lag=spec.contact_lag).scenario(member)
+    return ladder_variant(member, spec.integrator, level, lag=spec.contact_lag).scenario(member), spec.solver_params
 
 
 def _print_full(name: str, cfg: str, r: dict) -> None:
@@ -296,9 +299,9 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, red
             _print_full(name, cfg, r)
         linear, _, threads = configs[0].partition(":")
         for level in truth_levels or ():
-            sc_t = truth_scenario(name, level)
+            sc_t, params = truth_scenario(name, level)
             r = run_config(build_model(sc_t, load_mesh(sc_t.mesh)), state, linear, int(threads or 1),
-                           steps * 2 ** level)
+                           steps * 2 ** level, params)
             x_end = r.pop("x_end")
             r |= {"case": name, "mesh": sc.mesh.key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
                   "from_step": k, "steps": steps * 2 ** level, "truth_level": level,

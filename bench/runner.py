@@ -477,7 +477,7 @@ class Ladder:
         sc = self.member.scenario
         return Task(ladder_variant(sc, self.integrator, k, self.solver, self.spec.level_tol(k),
                                    self.spec.contact_lag).scenario(sc),
-                    self.solver, {})
+                    self.solver, self.spec.solver_params)
 
     def add(self, task: Task, store: RunStore, previous: Trajectory | None) -> Trajectory | None:
         """Record the finished run of the next level; returns its trajectory (None if it failed)."""

@@ -39,6 +39,9 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     contact_lag = "start"           # the ladder runs' contact.lag: "start" (default, the scenario's),
                                     # "corrected" (one re-lagged solve) or "fixed-point" (lagged iterations;
                                     # docs/design.md "Contact with the plane")
+    newton_tol = 1e-4               # optional: the ladder runs' Newton tolerance [fraction of L per second, in
+                                    # [1e-12, 0.01]; default the solver's, 1e-5]: a run of T seconds drifts by at
+                                    # most newton_tol T L, so keep newton_tol T well below tol
 
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }
@@ -83,6 +86,8 @@ TRUTH_DEPTH_RANGE = (1, 12)
 TRUTH_KINDS = ("step", "tolerance")
 #: Bounds of a tolerance ladder's first time.tol [fraction of L].
 TRUTH_START_TOL_RANGE = (1e-12, 0.5)
+#: Bounds of a truth ladder's Newton tolerance [fraction of L per second].
+TRUTH_NEWTON_TOL_RANGE = (1e-12, 1e-2)
 #: A tolerance ladder divides time.tol by this from level to level: a local error of order p + 1 = 3 (BDF2) then
 #: shrinks the steps by 8^(1/3) = 2 and the global error by 4 per level, as a halving of dt does.
 TOLERANCE_FACTOR = 8.0
@@ -106,7 +111,9 @@ class TruthSpec:
     frontier only, and its `kind`: `step` (level k at dt / 2^k) or `tolerance` (level k adaptive with time.tol =
     `start_tol` / TOLERANCE_FACTOR^k, `level_tol`; start_tol None for the step kind); `contact_lag`: the
     `contact.lag` of its runs (`start`: the scenario's own; a numerical choice, so every lag converges to the same
-    truth)."""
+    truth); `newton_tol`: its runs' Newton tolerance [fraction of L per second] (None: the solver's default, 1e-5).
+    A step's test bounds its velocity error by newton_tol L, so a run of duration T drifts by at most
+    newton_tol T L: a tolerance with newton_tol T well below `tol` cannot move the truth by more than that."""
 
     tol: float = 0.005
     depth: int = 4
@@ -115,6 +122,13 @@ class TruthSpec:
     kind: str = "step"
     start_tol: float | None = None
     contact_lag: str = "start"
+    newton_tol: float | None = None
+
+    @property
+    def solver_params(self) -> dict:
+        """The full-space solver's parameters of the ladder's runs: its Newton tolerance where `newton_tol` sets
+        one."""
+        return {} if self.newton_tol is None else {"tol": self.newton_tol}
 
     def level_tol(self, k: int) -> float | None:
         """time.tol [fraction of L] of level k of a tolerance ladder; None for a step ladder."""
@@ -126,7 +140,8 @@ class TruthSpec:
         (e.g. `--truth-depth` for command-line flags)."""
         d = ({"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders),
              "kind": self.kind, "contact_lag": self.contact_lag}
-             | ({} if self.start_tol is None else {"start_tol": self.start_tol}))
+             | ({} if self.start_tol is None else {"start_tol": self.start_tol})
+             | ({} if self.newton_tol is None else {"newton_tol": self.newton_tol}))
         d |= {k: v for k, v in (("tol", tol), ("depth", depth), ("integrator", integrator)) if v is not None}
         return truth_spec(d, where, sep)
 
@@ -237,7 +252,7 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 
 def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
-    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag"))
+    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag", "newton_tol"))
     d = TruthSpec()
     tol = t.get("tol", d.tol)
     lo, hi = TRUTH_TOL_RANGE
@@ -272,9 +287,16 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     lag = t.get("contact_lag", d.contact_lag)
     if lag not in CONTACT_LAGS:
         raise ScenarioError(f"{where}{sep}contact_lag", lag, f"expected one of {list(CONTACT_LAGS)}")
+    newton_tol = t.get("newton_tol")
+    lo_n, hi_n = TRUTH_NEWTON_TOL_RANGE
+    if newton_tol is not None and (isinstance(newton_tol, bool) or not isinstance(newton_tol, (int, float))
+                                   or not lo_n <= newton_tol <= hi_n):
+        raise ScenarioError(f"{where}{sep}newton_tol", newton_tol,
+                            f"expected a number in [{lo_n:g}, {hi_n:g}] (a fraction of L per second)")
     return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)), kind=kind,
-                     start_tol=None if start_tol is None else float(start_tol), contact_lag=lag)
+                     start_tol=None if start_tol is None else float(start_tol), contact_lag=lag,
+                     newton_tol=None if newton_tol is None else float(newton_tol))
 
 
 def _expand(d: object) -> tuple[str, str, bool, list[_Draft]]:

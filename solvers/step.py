@@ -53,11 +53,16 @@ class StepProblem(ABC):
 
 
 # ----- where a step evaluates what contact lags --------------------------------------------------------------------
-#: Most re-lagged solves of a `fixed-point` step (the first solve included); a step that reaches the cap keeps its
-#: last solve and counts it in the step's `lag_unconverged` counter. Measured (docs/figures.md): 2.6-3.3 solves a
-#: step on a sliding block (the cap on under 2% of the steps), 4-5 on the coarse cheese (the cap on 14-26%: the
-#: friction law's stick/slip switch keeps some steps from settling).
-LAG_MAX_SOLVES = 8
+#: Most solves of a `fixed-point` step (the first, converged, solve included; a later one a re-lag and its Newton
+#: iterations); a step that reaches the cap closes with a converged solve at its last lag and counts it in the
+#: step's `lag_unconverged` counter. The truth ladders of quick-damped take 3-10 a step on average (docs/figures.md,
+#: "The truth step").
+LAG_MAX_SOLVES = 24
+#: A `fixed-point` step's solves up to this one take one Newton iteration after their re-lag, later ones run to
+#: convergence: one iteration a re-lag is a Picard iteration with an inexact inner solve, which converges where the
+#: lag contracts faster than Newton does (most steps), but not always through a stick/slip switch, where converged
+#: solves do (measured on a skidding block: one step ran to a cap of 40 one-iteration re-lags).
+LAG_ONE_ITERATION_SOLVES = 12
 
 
 @dataclass(frozen=True)
@@ -67,17 +72,21 @@ class ContactLag:
 
     - `start` (the paper's, and the default): at the start of the step, x^n and v^n. The lag is then O(h) off the
       step's end, so contact and friction are first order under any integrator;
-    - `corrected`: the fixed point's first two solves: solve with the lag at the start, re-lag at that solution's
-      end state and solve once more from it (a predictor-corrector, as Heun's method corrects Euler's). Where the
+    - `corrected`: two solves: solve with the lag at the start, re-lag at that solution's end state and solve
+      once more from it, to convergence (a predictor-corrector, as Heun's method corrects Euler's). Where the
       step resolves contact the lag is then O(h^2) off the step's end: second order at two solves, where the fixed
       point takes 2-5; in an impact or a stick/slip switch inside a step one correction is not the fixed point
       (measured: docs/figures.md). The second solve is skipped where the re-lag is bitwise the same (free flight);
-    - `fixed-point`: lagged iterations (IPC's): solve with the lag at the start, re-lag at the solution's end state
-      and solve again from it, until re-lagging no longer moves the solution (the next solve's first Newton step is
-      below tolerance, or the lagged quantities come out bitwise the same, as in free flight). The normal pressure
-      is then the step's own end state's, as an implicit integrator takes it; the damping gate is the points below
-      the plane at the start or at the end (a union, so that the iteration cannot cycle between a point damped and
-      not: a gate taken at the end alone flips a point that the damping itself lifts back above the plane).
+    - `fixed-point`: lagged iterations (IPC's) to the step's own end state: solve with the lag at the start, then
+      re-lag at the current iterate's end state and take one Newton iteration from it, until re-lagging no longer
+      moves the solution (the first Newton step after a re-lag is below tolerance, or the lagged quantities come
+      out bitwise the same, as in free flight). The normal pressure is then the step's own end state's, as an
+      implicit integrator takes it (the tolerance test is the one a converged solve per re-lag would end on: the
+      end point solves its own lag's step). The damping gate is the points below the plane at the start or at any
+      of the step's lags so far: monotone within a step, so that the iteration cannot cycle between a point damped
+      and not (a gate taken at the end alone, or at the start or the end, flips a point that the damping itself
+      lifts back above the plane: measured, a 2-cycle that held 3-27 points and every step of a contact phase at
+      the cap).
 
     (A third rule, the lag at the history's linear extrapolation to the step's end, was measured and dropped: it
     extrapolates the contact's unresolved ringing and diverged on a sliding block at dt 0.01-0.0025,
@@ -95,23 +104,32 @@ class ContactLag:
         """The most solves a step runs under this rule: 1 (`start`), 2 (`corrected`), LAG_MAX_SOLVES (`fixed-point`)."""
         return {"start": 1, "corrected": 2}.get(self.mode, LAG_MAX_SOLVES)
 
+    def relag_iterations(self, solve: int) -> int | None:
+        """Newton iterations of the step's solve number `solve` (2 the first after a re-lag): one for the first
+        `fixed-point` ones (the re-lag folded into Newton's loop, up to LAG_ONE_ITERATION_SOLVES), None (to
+        convergence) for later ones and for `corrected`."""
+        return 1 if self.mode == "fixed-point" and solve <= LAG_ONE_ITERATION_SOLVES else None
+
 
 class LaggedStep(Protocol):
     """What `solve_lagged` needs of a backend's step: set the step's lagged quantities from lag coordinates and
-    velocities (returning them: the normal pressure and the damping gate at the contact points, to compare), run
-    Newton from y0 (None: the backend's own initial guess), and the velocity of end-of-step coordinates."""
+    velocities (returning them: the normal pressure and the damping gate at the contact points, to compare; the
+    gate is the points below the plane at the start or at any of the step's lags so far), run Newton from y0
+    (None: the backend's own initial guess) for at most max_iter iterations (None: the backend's limit), and the
+    velocity of end-of-step coordinates."""
 
     def relag(self, y_lag: np.ndarray, v_lag: np.ndarray) -> tuple[np.ndarray, ...]: ...
 
-    def newton(self, y0: np.ndarray | None) -> NewtonResult: ...
+    def newton(self, y0: np.ndarray | None, max_iter: int | None = None) -> NewtonResult: ...
 
     def velocity(self, y: np.ndarray) -> np.ndarray: ...
 
 
 def gate_positions(model: Model, x: np.ndarray, x_start: np.ndarray) -> np.ndarray:
-    """Per contact point whichever of its start position x_start and its lagged position x (p, 3) [m] lies lower,
-    (p, 3) [m] (x itself for the start lag, `x is x_start`, or without a plane): what the terms take as x_lag, whose
-    signed distance is negative exactly at the contact-damping gate."""
+    """Per contact point whichever of its earlier gate position x_start (the step's start, or the lowest of its lags
+    so far) and its lagged position x (p, 3) [m] lies lower, (p, 3) [m] (x itself for the start lag, `x is x_start`,
+    or without a plane): what the terms take as x_lag, whose signed distance is negative exactly at the
+    contact-damping gate."""
     if x is x_start or model.plane_normal is None:
         return x
     lower = signed_distance(x_start, model.plane_normal, model.plane_offset) < signed_distance(
@@ -121,11 +139,11 @@ def gate_positions(model: Model, x: np.ndarray, x_start: np.ndarray) -> np.ndarr
 
 def lagged_contact(terms: Sequence[Term], model: Model, x: np.ndarray, v: np.ndarray, x_start: np.ndarray
                    ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-    """(fn, gate, x_gate) of a step lagged at contact points x (p, 3) [m] moving at v (p, 3) [m/s], from the start
-    positions x_start (p, 3) [m] (x itself for the start lag): the normal pressure (p,) [Pa] at (x, v)
-    (`lagged_at_start`; None without a term that lags it), the contact-damping gate (p,) bool, the points below the
-    plane at the start or at x (`ContactLag`; all False without a plane), and the gate positions
-    (`gate_positions`)."""
+    """(fn, gate, x_gate) of a step lagged at contact points x (p, 3) [m] moving at v (p, 3) [m/s], from the earlier
+    gate positions x_start (p, 3) [m] (the start's, x itself for the start lag; a re-lag's: the previous lag's
+    x_gate): the normal pressure (p,) [Pa] at (x, v) (`lagged_at_start`; None without a term that lags it), the
+    contact-damping gate (p,) bool, the points below the plane at x_start or at x (`ContactLag`; all False without a
+    plane), and the gate positions (`gate_positions`)."""
     fn = lagged_at_start(terms, model, x, v)
     x_gate = gate_positions(model, x, x_start)
     if model.plane_normal is None:
@@ -137,8 +155,9 @@ def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
                  ) -> tuple[NewtonResult, dict[str, int]]:
     """One step's Newton solve(s) under `lag` (`ContactLag`) from the start coordinates y and velocities v.
     Returns the last solve's result with the iterations, halvings, linear iterations and stalls of every solve
-    summed, and the counters `lag_solves` (solves run: a `corrected` or `fixed-point` step) and `lag_unconverged`
-    (a `fixed-point` step: 1 where it stopped at LAG_MAX_SOLVES)."""
+    summed, and the counters `lag_solves` (solves run: a `corrected` or `fixed-point` step; a fixed point's re-lag
+    and its Newton iteration count as one) and `lag_unconverged` (a `fixed-point` step: 1 where it stopped at
+    LAG_MAX_SOLVES)."""
     key = step.relag(y, v)
     res = step.newton(None)
     if lag.max_solves == 1:
@@ -150,12 +169,16 @@ def solve_lagged(step: LaggedStep, lag: ContactLag, y: np.ndarray, v: np.ndarray
             unconverged = 0
             break
         key = new_key
-        again = step.newton(res.y)
+        again = step.newton(res.y, lag.relag_iterations(solves + 1))
         res = res.then(again)
         solves += 1
         if again.iters == 1 and again.converged:
             unconverged = 0
             break
+    if solves > 1 and lag.relag_iterations(solves) == 1 and not res.converged:
+        # the fixed point stopped after a re-lag's one iteration (the cap, or a re-lag that changed nothing): that
+        # lag's solve, to convergence
+        res = res.then(step.newton(res.y))
     return res, {"lag_solves": solves} | ({"lag_unconverged": unconverged} if lag.mode == "fixed-point" else {})
 
 

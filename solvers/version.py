@@ -13,4 +13,6 @@ this constant, when the guarded run moves and the version did not change).
 from __future__ import annotations
 
 #: Bump on any change that moves a trajectory (see the module docstring).
-PHYSICS_VERSION: int = 1
+PHYSICS_VERSION: int = 2
+# 2: the fixed-point contact lag's damping gate is monotone within a step and each re-lag takes one Newton
+#    iteration (solvers.step.ContactLag); fixed-point runs move, start-lag runs do not.

@@ -17,7 +17,7 @@ from frictionbench.solvers.licrom.reduced import ReducedSolver
 from frictionbench.solvers.model import State, build_model, initial_state
 from frictionbench.solvers.physics.contact import damping_for_ratio
 from frictionbench.solvers.simulate import simulate
-from frictionbench.solvers.step import ContactLag, lagged_contact
+from frictionbench.solvers.step import ContactLag, lagged_contact, solve_lagged
 
 from scenes import incline
 
@@ -61,20 +61,47 @@ def flight_solves(lag: str) -> int:
 
 
 def test_a_fixed_point_step_is_its_own_lag() -> None:
-    """After a fixed-point step in contact, lagging at its end state and solving again does not move it (one Newton
-    iteration below tolerance); a free-flight step solves once."""
+    """After a fixed-point step in contact (its solves replayed with `solve_lagged`: it ends where the solver's step
+    does), lagging at its end state under the step's own gate and solving again does not move it (one Newton
+    iteration below tolerance); its re-lags after the first each took one Newton iteration (the iterations are the
+    first solve's, the re-lags' and at most one closing solve's); a free-flight step solves once."""
     model, solver, state, stats = three_steps("fixed-point")
     assert stats.counters["lag_solves"] >= 2 and stats.counters["lag_unconverged"] == 0
-    lag = model.integrator.lagged(state.previous.x, state.previous.v, 0.01)
-    step = _LaggedStep(solver, lag, state.previous.x, 0.01)
+    previous = state.previous
+    lag = model.integrator.lagged(previous.x, previous.v, 0.01)
+    step = _LaggedStep(solver, lag, previous.x, 0.01)
+    res, counters = solve_lagged(step, ContactLag("fixed-point"), previous.x, previous.v)
+    assert np.array_equal(res.y, state.x) and counters.items() <= stats.counters.items()
     step.relag(state.x, state.v)
     again = step.newton(state.x)
     assert again.iters == 1 and again.converged
     p = model.points
-    fn_end, gate, _ = lagged_contact(solver.terms, model, state.x[p], state.v[p], state.previous.x[p])
+    fn_end, gate, _ = lagged_contact(solver.terms, model, state.x[p], state.v[p], previous.x[p])
     assert gate.any()
     assert fn_end is not None and fn_end.max() > 0.0
     assert flight_solves("fixed-point") == 1
+
+
+def test_the_fixed_points_gate_holds_a_point_once_damped() -> None:
+    """The damping gate of a fixed-point step is monotone: a point gated at one of its lags stays gated at every
+    later one, though it has risen above the plane (the rule that keeps the iteration from cycling)."""
+    model, solver, state, _ = three_steps("fixed-point")
+    previous = state.previous
+    p = model.points
+    step = _LaggedStep(solver, model.integrator.lagged(previous.x, previous.v, 0.01), previous.x, 0.01)
+    step.relag(previous.x, previous.v)
+    phi = state.x[p] @ model.plane_normal - model.plane_offset
+    sunk, lifted = state.x.copy(), state.x.copy()
+    sunk[p] -= (phi + 0.01)[:, None] * model.plane_normal  # every contact point 1 cm below the plane ...
+    lifted[p] -= (phi - 0.01)[:, None] * model.plane_normal  # ... then 1 cm above it
+    _, sunk_gate = step.relag(sunk, state.v)
+    _, lifted_gate = step.relag(lifted, state.v)
+    assert sunk_gate.all() and lifted_gate.all()
+    fresh = _LaggedStep(solver, model.integrator.lagged(previous.x, previous.v, 0.01), previous.x, 0.01)
+    fresh.relag(previous.x, previous.v)
+    _, fresh_gate = fresh.relag(lifted, state.v)  # the same lift as a step's first re-lag: only the start's points
+    start_gate = lagged_contact(solver.terms, model, previous.x[p], previous.v[p], previous.x[p])[1]
+    assert np.array_equal(fresh_gate, start_gate) and 0 < fresh_gate.sum() < fresh_gate.size
 
 
 def first_difference(lag: str, solver: str) -> float:

@@ -288,7 +288,7 @@ def test_quick_damped_is_quick_with_paper_dampeds_damping_and_truth_lag():
         undamped = replace(b.scenario, name=a.scenario.name, description=a.scenario.description, tags=a.scenario.tags,
                            effects=a.scenario.effects, material=a.scenario.material, contact=a.scenario.contact)
         assert undamped == a.scenario  # only the damping differs: mesh, plane, drop and time are quick's
-    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point")
+    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point", newton_tol=1e-4)
 
 
 def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):

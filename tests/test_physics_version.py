@@ -1,6 +1,8 @@
-"""The guard of PHYSICS_VERSION (`solvers.version`), which keys the truth store: one quick-suite member's coarsest
-truth-ladder level (the suite's `[truth]` settings), cut to GUARD_DURATION of simulated time, recomputed and compared
-with the numbers tests/data/physics_guard.json recorded, with the version, when it was written. A change that moves
+"""The guard of PHYSICS_VERSION (`solvers.version`), which keys the truth store: the first member's coarsest
+truth-ladder level (the suite's `[truth]` settings) of each guarded suite (quick: contact lagged at the step's
+start; quick-damped: at its fixed point, material and contact damping), cut to GUARD_DURATION of simulated time,
+recomputed and compared with the numbers tests/data/physics_guard.json recorded, with the version, when it was
+written. A change that moves
 the trajectory and leaves the version as it was fails here: bump PHYSICS_VERSION and regenerate the fixture with
 
     python tests/test_physics_version.py --regenerate
@@ -14,6 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from frictionbench.bench.runner import REFERENCE, Task, execute, ladder_variant
 from frictionbench.scenarios.atomic import write_json_atomic
@@ -25,26 +28,26 @@ FIXTURE = Path(__file__).parent / "data" / "physics_guard.json"
 REGENERATE = "python tests/test_physics_version.py --regenerate"
 #: The guarded suite (its first member, at its truth's level 0) and the simulated time kept [s]: the cheese falls
 #: 5 cm in 0.10 s, so the run ends after 0.1 s of contact and friction
-GUARD_SUITE, GUARD_DURATION = "quick", 0.2
+GUARD_SUITES, GUARD_DURATION = ("quick", "quick-damped"), 0.2
 #: Largest difference of a recorded number allowed [fraction of L] (round-off of another BLAS build, not physics)
 TOL_REL = 1e-9
 
 
-def guarded_numbers() -> dict:
-    """Recompute the guarded run: {physics_version, suite, member, key (its store key), frames, L [m],
+def guarded_numbers(name: str) -> dict:
+    """Recompute suite `name`'s guarded run: {physics_version, suite, member, key (its store key), frames, L [m],
     final_mean (3,) [m], final_rms (about the mean) [m], vertices {index: (3,) [m]} at the last frame}."""
-    suite = load_suite(GUARD_SUITE)
+    suite = load_suite(name)
     member, spec = suite.scenarios[0], suite.truth
     level = ladder_variant(member.scenario, spec.integrator, 0, tol=spec.level_tol(0), lag=spec.contact_lag)
     sc = replace(level, overrides=level.overrides | {"time.duration": GUARD_DURATION}).scenario(member.scenario)
     mesh = load_mesh(sc.mesh)
-    task = Task(sc, REFERENCE, {})
+    task = Task(sc, REFERENCE, spec.solver_params)
     result = execute(task, mesh, (), "cpu")
     if result.trajectory is None:
         raise RuntimeError(f"the guarded run failed: {result.stats['failure']}")
     x = result.trajectory.x[-1]
     n = x.shape[0]
-    return {"physics_version": PHYSICS_VERSION, "suite": GUARD_SUITE, "member": member.scenario.name,
+    return {"physics_version": PHYSICS_VERSION, "suite": name, "member": member.scenario.name,
             "key": task.key, "frames": result.trajectory.n_frames, "L": bbox_diagonal(mesh.X),
             "final_mean": x.mean(axis=0).tolist(),
             "final_rms": float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1)))),
@@ -61,9 +64,10 @@ def moved(now: dict, then: dict) -> list[str]:
     return [f"{name}: {a!r} (recorded {b!r})" for name, a, b in pairs if abs(a - b) > tol]
 
 
-def test_the_trajectory_moves_only_with_the_physics_version():
-    then = json.loads(FIXTURE.read_text())
-    now = guarded_numbers()
+@pytest.mark.parametrize("name", GUARD_SUITES)
+def test_the_trajectory_moves_only_with_the_physics_version(name: str):
+    then = json.loads(FIXTURE.read_text())[name]
+    now = guarded_numbers(name)
     assert now["key"] == then["key"], (
         f"the guarded run's settings changed ({then['member']} of {then['suite']}, key {then['key']} -> "
         f"{now['key']}: its scene, the suite's [truth] or the guard itself): regenerate the fixture with `{REGENERATE}` "
@@ -82,7 +86,7 @@ def test_the_trajectory_moves_only_with_the_physics_version():
 
 
 def test_a_moved_number_is_caught_and_round_off_is_not():
-    then = json.loads(FIXTURE.read_text())
+    then = json.loads(FIXTURE.read_text())[GUARD_SUITES[0]]
     nudged = json.loads(json.dumps(then))
     nudged["vertices"]["0"][1] += 10 * TOL_REL * then["L"]
     assert moved(nudged, then) == [f"vertex 0[1]: {nudged['vertices']['0'][1]!r} (recorded {then['vertices']['0'][1]!r})"]
@@ -96,5 +100,5 @@ if __name__ == "__main__":
                                                  "PHYSICS_VERSION in solvers/version.py)")
     parser.add_argument("--regenerate", action="store_true", required=True)
     parser.parse_args()
-    write_json_atomic(FIXTURE, guarded_numbers())
+    write_json_atomic(FIXTURE, {name: guarded_numbers(name) for name in GUARD_SUITES})
     print(f"wrote {FIXTURE} (PHYSICS_VERSION {PHYSICS_VERSION})")

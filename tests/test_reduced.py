@@ -433,7 +433,7 @@ def test_a_body_hessian_kept_for_the_step_converges_where_newton_does(block, lag
     (ref, ref_stats), (traj, stats) = runs["iteration"], runs["step"]
     assert all(s.converged for s in stats)
     iterations = sum(s.iterations for s in stats)
-    assert sum(s.iterations for s in ref_stats) <= iterations <= 1.05 * sum(s.iterations for s in ref_stats)
+    assert abs(iterations - sum(s.iterations for s in ref_stats)) <= 0.05 * sum(s.iterations for s in ref_stats)
     assert hessians["step"] == len(stats) < hessians["iteration"] / 3  # one a step
     if lag == "fixed-point":
         assert sum(s.counters["lag_solves"] for s in stats) > 2 * len(stats)  # one Hessian over several solves

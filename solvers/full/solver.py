@@ -215,23 +215,28 @@ class _LaggedStep:
     lag: Lagged
     x_start: np.ndarray
     dt: float
+    x_gate: np.ndarray | None = None
 
     def relag(self, x_lag: np.ndarray, v_lag: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         """Begin the step with its lagged quantities at positions x_lag and velocities v_lag (n, 3)
-        (`lagged_contact`)."""
+        (`lagged_contact`, below the gate positions of the step's earlier lags: x_gate, the contact points' (p, 3)
+        [m], kept here)."""
         sv, m, lag = self.solver, self.solver.model, self.lag
         p = m.points
         start = x_lag is self.x_start  # the step's first solve: the lag at the start
         x_start_p = self.x_start[p]
-        fn, gate, x_gate = lagged_contact(sv.terms, m, x_start_p if start else x_lag[p], v_lag[p], x_start_p)
+        below = x_start_p if self.x_gate is None else self.x_gate
+        fn, gate, self.x_gate = lagged_contact(sv.terms, m, x_start_p if start else x_lag[p], v_lag[p], below)
+        x_gate = self.x_gate
         if not start:  # a re-lag: the gate's positions at the contact points
             x_lag = x_lag.copy()
             x_lag[p] = x_gate
         sv.begin(StepData(lag.y_tilde, x_lag, self.dt, fn, x_bar=lag.y_bar, h_eff=lag.h_eff))
         return fn, gate
 
-    def newton(self, x0: np.ndarray | None) -> NewtonResult:
-        """Newton from x0, or (None) from x_hat, shortened by the feasible-step rule where a term caps steps."""
+    def newton(self, x0: np.ndarray | None, max_iter: int | None = None) -> NewtonResult:
+        """Newton from x0, or (None) from x_hat, shortened by the feasible-step rule where a term caps steps; at
+        most max_iter iterations (None: the settings')."""
         sv, lag, s = self.solver, self.lag, self.solver.settings
         problem = _StepProblem(sv, lag.h_eff)
         if x0 is None:
@@ -239,7 +244,8 @@ class _LaggedStep:
             if problem.capping:
                 reach = (lag.y_bar - self.x_start) + lag.h_eff * lag.v_bar  # x_hat - x^n (h v^n for backward Euler)
                 x0 = self.x_start.copy() + reach * problem.max_step(self.x_start, reach)
-        return minimise(problem, x0, s.tol * sv.model.L, s.max_iter, LineSearch(s.armijo, s.max_halvings))
+        return minimise(problem, x0, s.tol * sv.model.L, max_iter or s.max_iter,
+                        LineSearch(s.armijo, s.max_halvings))
 
     def velocity(self, x: np.ndarray) -> np.ndarray:
         """The end-of-step velocities of positions x (n, 3) [m/s]."""

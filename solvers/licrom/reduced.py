@@ -262,6 +262,17 @@ def _positions(Xp: np.ndarray, Wp: np.ndarray, q: np.ndarray) -> np.ndarray:
     return Xp + (Wp.reshape(-1, Wp.shape[2]) @ q).reshape(-1, 3)
 
 
+def _lowest(model: Model, Xp: np.ndarray, Wp: np.ndarray, x_start: np.ndarray, q_gates: tuple[np.ndarray, ...]
+            ) -> np.ndarray:
+    """The gate positions (k, 3) [m] of a step's earlier lags at sample points with rest positions Xp (k, 3) [m]
+    and basis rows Wp (k, 3, r): per point the lowest of its start position x_start (k, 3) [m] and its positions at
+    the latent coordinates q_gates (`solvers.step.gate_positions`; x_start itself where there are none)."""
+    below = x_start
+    for q in q_gates:
+        below = gate_positions(model, _positions(Xp, Wp, q), below)
+    return below
+
+
 def _scatter(values: np.ndarray, ids: np.ndarray, p: int) -> np.ndarray:
     """A (p,) array of `values` (k,) at ids (k,) and zeros (False) elsewhere."""
     out = np.zeros(p, dtype=values.dtype)
@@ -287,8 +298,10 @@ class ReducedStep:
     target q_hat = q_bar + h_eff qdot_bar (r,), the latent coordinates where the step lags contact q_lag (r,) (q^n
     itself for the start of the step, the default, `solvers.step.ContactLag`), the lagged normal pressure fn (p,)
     [Pa] (None without friction) and contact-damping gate (p,) bool there, and `lagged` (p,) bool, the points where
-    a point term can act whatever their position (`PointTerm.lagged_support`). Backward Euler: h_eff = h, q_bar =
-    q^n. The dissipative terms' velocity is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the points)."""
+    a point term can act whatever their position (`PointTerm.lagged_support`); q_gates, the step's earlier lags'
+    latent coordinates (a fixed point's re-lag: the gate is the points below the plane at the start, at any of them
+    or at q_lag, `solvers.step.ContactLag`). Backward Euler: h_eff = h, q_bar = q^n. The dissipative terms' velocity
+    is W (q - q_bar) / h_eff ((x - x_bar) / h_eff at the points)."""
 
     h: float
     h_eff: float
@@ -299,15 +312,16 @@ class ReducedStep:
     fn: np.ndarray | None
     gate: np.ndarray | None = None
     lagged: np.ndarray | None = None
+    q_gates: tuple[np.ndarray, ...] = ()
 
     def lagged_positions(self, model: Model, Xp: np.ndarray, Wp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """At sample points with rest positions Xp (k, 3) [m] and basis rows Wp (k, 3, r)
-        (`ReducedModel.point_rows`), the gate positions x_lag (`solvers.step.gate_positions` of the lag's and the
-        start's positions: what the point terms take as x_lag) and x_bar, (k, 3) [m] each."""
+        (`ReducedModel.point_rows`), the gate positions x_lag (`solvers.step.gate_positions` of the lag's, the earlier
+        lags' and the start's positions: what the point terms take as x_lag) and x_bar, (k, 3) [m] each."""
         x_start = _positions(Xp, Wp, self.q_prev)
         x_lag = x_start if self.q_lag is self.q_prev else _positions(Xp, Wp, self.q_lag)
         x_bar = x_start if self.q_bar is self.q_prev else _positions(Xp, Wp, self.q_bar)
-        return gate_positions(model, x_lag, x_start), x_bar
+        return gate_positions(model, x_lag, _lowest(model, Xp, Wp, x_start, self.q_gates)), x_bar
 
 
 @dataclass(frozen=True)
@@ -564,33 +578,37 @@ class ReducedSolver:
         return E, g, H
 
     # ----- one time step ----------------------------------------------------------------------------------
-    def _lag_points(self, q: np.ndarray, q_lag: np.ndarray) -> np.ndarray | None:
+    def _lag_points(self, q: np.ndarray, q_lag: np.ndarray, q_gates: tuple[np.ndarray, ...] = ()
+                    ) -> np.ndarray | None:
         """The sample points where the step's lag can be nonzero (k,) (None: all points, with the candidates off):
-        those whose signed distance at the start q or at the lag q_lag is below the terms' largest `Term.lag_reach`
-        (at least the plane, for the gate), plus CANDIDATE_MARGIN L of round-off. Elsewhere the lagged pressure is
-        0, the gate and every term's lagged support False."""
+        those whose signed distance at the start q, at the lag q_lag or at an earlier lag of the step (q_gates) is
+        below the terms' largest `Term.lag_reach` (at least the plane, for the gate), plus CANDIDATE_MARGIN L of
+        round-off. Elsewhere the lagged pressure is 0, the gate and every term's lagged support False."""
         if self._lag_below is None:
             return None
         near = self.reduced.N @ q < self._lag_below
-        return np.flatnonzero(near if q_lag is q else near | (self.reduced.N @ q_lag < self._lag_below))
+        for other in (() if q_lag is q else (q_lag,)) + q_gates:
+            near |= self.reduced.N @ other < self._lag_below
+        return np.flatnonzero(near)
 
     def _begin(self, latent: ReducedState, h: float, previous: ReducedState | None = None,
-               lag_at: tuple[np.ndarray, np.ndarray] | None = None) -> ReducedStep:
+               lag_at: tuple[np.ndarray, np.ndarray] | None = None, q_gates: tuple[np.ndarray, ...] = ()
+               ) -> ReducedStep:
         """Per-step constants of the model's integrator, with `previous` the latent state before (the history
         `Integrator.previous` picked; None: none); what the terms lag (`Term.begin_step`: friction's normal pressure;
         the contact-damping gate) at the contact points of the latent coordinates and rates `lag_at` = (q, qdot)
-        (None: the start of the step, `contact.lag = "start"`), computed at the points where it can be nonzero
-        (`_lag_points`)."""
+        (None: the start of the step, `contact.lag = "start"`), with the gate below the plane at the step's earlier
+        lags q_gates too, computed at the points where it can be nonzero (`_lag_points`)."""
         m, rm = self.model, self.reduced
         lag = self.integrator.lagged(latent.q, latent.qdot, h, None if previous is None else
                                      (previous.q, previous.qdot, latent.t - previous.t))
         q_lag, qdot_lag = (latent.q, latent.qdot) if lag_at is None else lag_at
-        ids = self._lag_points(latent.q, q_lag)
+        ids = self._lag_points(latent.q, q_lag, q_gates)
         Xp, Wp = rm.point_rows(ids)
         x_start = _positions(Xp, Wp, latent.q)
         x_lag = x_start if q_lag is latent.q else _positions(Xp, Wp, q_lag)
         v = (Wp.reshape(-1, rm.r) @ qdot_lag).reshape(-1, 3)
-        fn, gate, x_gate = lagged_contact(self.terms, m, x_lag, v, x_start)
+        fn, gate, x_gate = lagged_contact(self.terms, m, x_lag, v, _lowest(m, Xp, Wp, x_start, q_gates))
         lagged = None
         for term in self.point_terms:
             support = term.lagged_support(m, x_gate, fn)
@@ -598,7 +616,7 @@ class ReducedSolver:
                 lagged = support if lagged is None else lagged | support
         if ids is not None:
             fn, gate, lagged = (None if a is None else _scatter(a, ids, rm.points.size) for a in (fn, gate, lagged))
-        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, q_lag, fn, gate, lagged)
+        return ReducedStep(h, lag.h_eff, latent.q, lag.y_bar, lag.y_tilde, q_lag, fn, gate, lagged, q_gates)
 
     @staticmethod
     def newton_solve(H: np.ndarray, g: np.ndarray) -> np.ndarray:
@@ -619,11 +637,12 @@ class ReducedSolver:
         """q_hat, shortened by the step's feasible-step rule (the barrier law: no contact point crosses the plane)."""
         return st.q_prev + problem.max_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
-    def _newton(self, st: ReducedStep, q0: np.ndarray | None = None) -> NewtonResult:
-        """Minimise E by the shared Newton loop (`solvers.newton`) from q0 (None: `_initial_guess`)."""
+    def _newton(self, st: ReducedStep, q0: np.ndarray | None = None, max_iter: int | None = None) -> NewtonResult:
+        """Minimise E by the shared Newton loop (`solvers.newton`) from q0 (None: `_initial_guess`), at most
+        max_iter iterations (None: the solver's)."""
         problem = _StepProblem(self, st, self.tol * self.model.L)
         res = minimise(problem, self._initial_guess(st, problem) if q0 is None else q0, problem.tol_v,
-                       self.max_iter, LineSearch(self.armijo, self.max_halvings))
+                       max_iter or self.max_iter, LineSearch(self.armijo, self.max_halvings))
         if problem.bounded_dq is not None:  # the loop stopped unconverged on a bound: report the exact norm
             res = replace(res, residual=self._velocity_norm(problem.bounded_dq, st.h_eff))
         return res
@@ -642,14 +661,15 @@ class ReducedSolver:
             rhs += Wp.reshape(-1, rm.r).T @ gp.ravel()
         return rhs
 
-    def _projected_gradient(self, st: ReducedStep, q0: np.ndarray | None = None) -> NewtonResult:
+    def _projected_gradient(self, st: ReducedStep, q0: np.ndarray | None = None, max_iter: int | None = None
+                            ) -> NewtonResult:
         """The paper's scheme (no line search: halvings, linear iterations and stalls are 0) from q0 (None:
-        `_initial_guess`)."""
+        `_initial_guess`), at most max_iter iterations (None: the solver's)."""
         problem = _StepProblem(self, st, self.tol * self.model.L)
         q = self._initial_guess(st, problem) if q0 is None else q0
         tol_v = self.tol * self.model.L
         residual, it = np.inf, 0
-        for it in range(1, self.max_iter + 1):
+        for it in range(1, (max_iter or self.max_iter) + 1):
             rhs = self.alpha * st.h_eff**2 * self._sample_gradient_rhs(q, st)
             dq = -cho_solve(self.samples.S_cho, rhs, check_finite=False)
             dq *= problem.max_step(q, dq)
@@ -703,14 +723,17 @@ class _LaggedStep:
     st: ReducedStep | None = None
 
     def relag(self, q_lag: np.ndarray, qdot_lag: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
-        """The step's constants with the lag at latent coordinates q_lag and rates qdot_lag (r,)."""
-        self.st = self.solver._begin(self.latent, self.dt, self.previous, (q_lag, qdot_lag))
+        """The step's constants with the lag at latent coordinates q_lag and rates qdot_lag (r,), the gate below
+        the plane at the step's earlier lags too."""
+        earlier = () if self.st is None or self.st.q_lag is self.latent.q else self.st.q_gates + (self.st.q_lag,)
+        self.st = self.solver._begin(self.latent, self.dt, self.previous, (q_lag, qdot_lag), earlier)
         return self.st.fn, self.st.gate
 
-    def newton(self, q0: np.ndarray | None) -> NewtonResult:
-        """The solver's scheme from q0 (None: its initial guess)."""
+    def newton(self, q0: np.ndarray | None, max_iter: int | None = None) -> NewtonResult:
+        """The solver's scheme from q0 (None: its initial guess), at most max_iter iterations (None: the
+        solver's)."""
         sv = self.solver
-        return (sv._newton if sv.scheme == "newton" else sv._projected_gradient)(self.st, q0)
+        return (sv._newton if sv.scheme == "newton" else sv._projected_gradient)(self.st, q0, max_iter)
 
     def velocity(self, q: np.ndarray) -> np.ndarray:
         """The latent rate (q - q_bar) / h_eff (r,) of end-of-step coordinates q."""
