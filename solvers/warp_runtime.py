@@ -5,6 +5,9 @@ from __future__ import annotations
 import ctypes
 import logging
 import os
+import sys
+import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import warp as wp
@@ -15,6 +18,10 @@ except ImportError:  # pragma: no cover - another warp version: relaunch through
     _build_cpu_args_structs = None
 
 _done = False
+
+#: What warp's native library prints (to the process's stderr, at every `wp.init()`) on a machine without a CUDA
+#: driver: no news on a CPU machine, and a process pool's workers would print it once each.
+NO_CUDA_DRIVER = "Warp CUDA warning: Could not find or load the NVIDIA CUDA driver"
 
 
 def cache_root() -> Path:
@@ -29,8 +36,26 @@ def init_warp() -> None:
         return
     wp.config.kernel_cache_dir = str(cache_root() / "warp")
     wp.config.log_level = logging.WARNING  # no init banner or per-module load lines
-    wp.init()
+    without_lines(NO_CUDA_DRIVER, wp.init)
     _done = True
+
+
+def without_lines(prefix: str, call: Callable[[], None]) -> None:
+    """Run call() with the process's stderr (file descriptor 2, where native code writes) captured, then write back
+    everything it printed except the lines that start with `prefix`."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            call()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            captured.seek(0)
+            text = captured.read().decode(errors="replace")
+            sys.stderr.write("".join(line for line in text.splitlines(keepends=True) if not line.startswith(prefix)))
+            sys.stderr.flush()
 
 
 class RecordedLaunch:

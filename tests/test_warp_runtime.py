@@ -1,8 +1,12 @@
 """The recorded relaunch of a CPU kernel (`solvers.warp_runtime.RecordedLaunch`): its argument structure built once
 and the compiled kernel called on it gives what warp's own launch gives, bit for bit, and follows every change of a
-scalar argument and of the launch size."""
+scalar argument and of the launch size; and warp's initialisation without its no-CUDA-driver notice."""
 
 from __future__ import annotations
+
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -47,3 +51,22 @@ def test_a_relaunch_matches_warps_launch_bit_for_bit_through_every_change(monkey
         assert np.array_equal(view, expected), (a, b, n)
         assert np.count_nonzero(view[n:]) == 0  # the size is followed: nothing written past n
     assert (launch._packed is not None) == packed
+
+
+def test_warps_no_driver_notice_is_dropped_and_other_native_output_kept(capfd) -> None:
+    """`without_lines` drops the lines native code writes to file descriptor 2 that start with the prefix (warp's
+    notice that no CUDA driver loads, printed at every `wp.init()` on a CPU machine) and writes back the rest."""
+    from frictionbench.solvers.warp_runtime import NO_CUDA_DRIVER, without_lines
+
+    def native() -> None:
+        os.write(2, f"{NO_CUDA_DRIVER}. GPU execution will not be available.\nanother native message\n".encode())
+
+    without_lines(NO_CUDA_DRIVER, native)
+    err = capfd.readouterr().err
+    assert NO_CUDA_DRIVER not in err and "another native message\n" in err
+
+
+def test_a_fresh_process_initialises_warp_without_the_notice() -> None:
+    code = "from frictionbench.solvers.warp_runtime import init_warp; init_warp(); print('ok')"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "ok" and "CUDA driver" not in done.stderr
