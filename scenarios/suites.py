@@ -254,10 +254,7 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
     t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag", "newton_tol"))
     d = TruthSpec()
-    tol = t.get("tol", d.tol)
-    lo, hi = TRUTH_TOL_RANGE
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not lo <= tol <= hi:
-        raise ScenarioError(f"{where}{sep}tol", tol, f"expected a number in [{lo:g}, {hi:g}] (a fraction of L)")
+    tol = _number_in(t.get("tol", d.tol), TRUTH_TOL_RANGE, f"{where}{sep}tol", "a fraction of L")
     depth = t.get("depth", d.depth)
     lo_d, hi_d = TRUTH_DEPTH_RANGE
     if isinstance(depth, bool) or not isinstance(depth, int) or not lo_d <= depth <= hi_d:
@@ -274,29 +271,32 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     if kind not in TRUTH_KINDS:
         raise ScenarioError(f"{where}{sep}kind", kind, f"expected one of {list(TRUTH_KINDS)}")
     start_tol = t.get("start_tol")
-    lo_s, hi_s = TRUTH_START_TOL_RANGE
     if kind == "tolerance" and start_tol is None:
         raise ScenarioError(f"{where}{sep}start_tol", start_tol, f"required with {where}{sep}kind = 'tolerance' (the "
                                                                  "first level's time.tol, a fraction of L)")
     if kind != "tolerance" and start_tol is not None:
         raise ScenarioError(f"{where}{sep}start_tol", start_tol, f"only with {where}{sep}kind = 'tolerance'")
-    if start_tol is not None and (isinstance(start_tol, bool) or not isinstance(start_tol, (int, float))
-                                  or not lo_s <= start_tol <= hi_s):
-        raise ScenarioError(f"{where}{sep}start_tol", start_tol,
-                            f"expected a number in [{lo_s:g}, {hi_s:g}] (a fraction of L)")
+    if start_tol is not None:
+        start_tol = _number_in(start_tol, TRUTH_START_TOL_RANGE, f"{where}{sep}start_tol", "a fraction of L")
     lag = t.get("contact_lag", d.contact_lag)
     if lag not in CONTACT_LAGS:
         raise ScenarioError(f"{where}{sep}contact_lag", lag, f"expected one of {list(CONTACT_LAGS)}")
     newton_tol = t.get("newton_tol")
-    lo_n, hi_n = TRUTH_NEWTON_TOL_RANGE
-    if newton_tol is not None and (isinstance(newton_tol, bool) or not isinstance(newton_tol, (int, float))
-                                   or not lo_n <= newton_tol <= hi_n):
-        raise ScenarioError(f"{where}{sep}newton_tol", newton_tol,
-                            f"expected a number in [{lo_n:g}, {hi_n:g}] (a fraction of L per second)")
-    return TruthSpec(tol=float(tol), depth=depth, integrator=integrator,
+    if newton_tol is not None:
+        newton_tol = _number_in(newton_tol, TRUTH_NEWTON_TOL_RANGE, f"{where}{sep}newton_tol",
+                                "a fraction of L per second")
+    return TruthSpec(tol=tol, depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)), kind=kind,
-                     start_tol=None if start_tol is None else float(start_tol), contact_lag=lag,
-                     newton_tol=None if newton_tol is None else float(newton_tol))
+                     start_tol=start_tol, contact_lag=lag, newton_tol=newton_tol)
+
+
+def _number_in(value: object, bounds: tuple[float, float], field: str, unit: str) -> float:
+    """`value` as a float when it is a number (not a bool) within `bounds` (inclusive); else an error naming
+    `field`, the bounds and the unit."""
+    lo, hi = bounds
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+        raise ScenarioError(field, value, f"expected a number in [{lo:g}, {hi:g}] ({unit})")
+    return float(value)
 
 
 def _expand(d: object) -> tuple[str, str, bool, list[_Draft]]:

@@ -17,7 +17,7 @@ from frictionbench.analysis.truth import certified_horizon, richardson, with_fro
 from frictionbench.bench.cli import main
 from frictionbench.bench.compare import compare_results
 from frictionbench.bench.gates import BOUND_ONLY, NO_LADDER_COST, UNCERTIFIED, check, load_gates
-from frictionbench.bench.runner import SESSION, Variant, run_suite
+from frictionbench.bench.runner import SESSION, Ladder, Variant, run_suite
 from frictionbench.bench.variants import DT_HALF
 from frictionbench.bench.store import RunStore
 from frictionbench.scenarios.errors import ScenarioError
@@ -48,11 +48,22 @@ def test_the_truth_table_has_defaults_and_validated_fields():
     ({"depth": 0}, "truth.depth", "0"), ({"depth": 13}, "truth.depth", "13"), ({"depth": 2.5}, "truth.depth", "2.5"),
     ({"depth": True}, "truth.depth", "True"), ({"tol": 0.0}, "truth.tol", "0.0"), ({"tol": 0.9}, "truth.tol", "0.9"),
     ({"tol": "small"}, "truth.tol", "small"), ({"integrator": "rk4"}, "truth.integrator", "rk4"),
-    ({"ladders": ["euler"]}, "truth.ladders[0]", "euler"), ({"depht": 3}, "depht", "3")])
+    ({"ladders": ["euler"]}, "truth.ladders[0]", "euler"), ({"depht": 3}, "depht", "3"),
+    ({"newton_tol": 0.0}, "truth.newton_tol", "0.0"), ({"newton_tol": 0.1}, "truth.newton_tol", "0.1"),
+    ({"newton_tol": True}, "truth.newton_tol", "True")])
 def test_a_bad_truth_table_is_refused_naming_the_field_and_value(truth, field, value):
     with pytest.raises(ScenarioError) as err:
         suite_from_dict(_suite_dict(**truth))
     assert field in str(err.value) and value in str(err.value)
+
+
+def test_a_truth_newton_tolerance_reaches_the_ladders_runs():
+    suite = suite_from_dict(_suite_dict(newton_tol=1e-4))
+    spec = suite.truth
+    assert spec.newton_tol == 1e-4 and spec.solver_params == {"tol": 1e-4}
+    assert Ladder(suite.scenarios[0], spec.integrator, spec=spec).task(2).params == {"tol": 1e-4}
+    plain = suite_from_dict(_suite_dict())
+    assert Ladder(plain.scenarios[0], plain.truth.integrator, spec=plain.truth).task(2).params == {}
 
 
 def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):

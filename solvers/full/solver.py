@@ -226,8 +226,8 @@ class _LaggedStep:
         start = x_lag is self.x_start  # the step's first solve: the lag at the start
         x_start_p = self.x_start[p]
         below = x_start_p if self.x_gate is None else self.x_gate
-        fn, gate, self.x_gate = lagged_contact(sv.terms, m, x_start_p if start else x_lag[p], v_lag[p], below)
-        x_gate = self.x_gate
+        fn, gate, x_gate = lagged_contact(sv.terms, m, x_start_p if start else x_lag[p], v_lag[p], below)
+        self.x_gate = x_gate
         if not start:  # a re-lag: the gate's positions at the contact points
             x_lag = x_lag.copy()
             x_lag[p] = x_gate
