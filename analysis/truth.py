@@ -13,8 +13,10 @@ A truth that does not certify over the whole run may still certify over its firs
 the end of the longest first stretch of frames on which the two finest runs differ by at most `tol` frame by frame.
 
 The frontier of a scenario is err_truth (against the truth) versus cost, wall_s_per_sim_s (stepping wall time per
-simulated second). `speedup_equal_accuracy` of any run is the full-space ladder's cost interpolated log-log at the
-run's err_truth, divided by the run's own cost (`full_space_cost`).
+simulated second), over its full-space runs: the ladder's, and every other run of the ladder's solver on the
+ladder's mesh (the same-dt reference, its step and tolerance sweeps): the cheapest full-space run the results hold
+at each accuracy. `speedup_equal_accuracy` of any run is that front's cost interpolated log-log at the run's
+err_truth, divided by the run's own cost (`full_space_cost`).
 
 Every function is pure: numbers and row dicts in, numbers and row dicts out.
 """
@@ -38,10 +40,10 @@ TWO_LEVEL_ORDER = 1.0
 #: An accuracy verdict whose threshold is below this multiple of an uncertified truth's error estimate is
 #: undecidable: the truth is not known well enough to tell the run's error from the truth's own.
 UNDECIDABLE_FACTOR = 3.0
-#: The frontier note of a run more accurate than every ladder run but the truth (no speedup number).
-MORE_ACCURATE = "more accurate than the ladder"
-#: The frontier note of a run less accurate than the ladder's coarsest run: its speedup is an upper bound.
-AT_MOST = "at most: less accurate than the coarsest ladder run"
+#: The frontier note of a run more accurate than every full-space run but the truth (no speedup number).
+MORE_ACCURATE = "more accurate than every full-space run"
+#: The frontier note of a run less accurate than every full-space run: its speedup is an upper bound.
+AT_MOST = "at most: less accurate than every full-space run"
 
 
 @dataclass(frozen=True)
@@ -190,21 +192,23 @@ def speedup_equal_accuracy(front: Sequence[tuple[float, float]], err: float, cos
 
 def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
     """Rows with `speedup_equal_accuracy` and `frontier_note` on every row that has err_truth and
-    wall_s_per_sim_s: against the Pareto front of its scenario's ladder rows (rows with a non-empty `ladder`,
-    every integrator pooled: the cheapest full-space run at each accuracy), `speedup_equal_accuracy` (the truth's
-    own run, err_truth 0, gets the note `the truth`); and `timed_beside_ladder`: whether the row's run was timed in
-    the session that timed every ladder run of its scenario (`timed_in`; None where a run does not say, as in
-    stores written before sessions were recorded). Rows of scenarios without ladder rows, and rows without the two
-    figures, are returned unchanged."""
+    wall_s_per_sim_s: against the Pareto front of its scenario's full-space runs (`full_space_runs`: the cheapest
+    full-space run at each accuracy), `speedup_equal_accuracy` (the truth's own run, err_truth 0, gets the note
+    `the truth`); and `timed_beside_ladder`: whether the row's run was timed in the session that timed every
+    ladder run of its scenario (`timed_in`; None where a run does not say, as in stores written before sessions
+    were recorded). Rows of scenarios without ladder rows, and rows without the two figures, are returned
+    unchanged."""
     fronts: dict[object, list[tuple[float, float]]] = {}
     sessions: dict[object, set] = {}
-    for r in rows:
-        if r.get("ladder") and r.get("status") == "ok":
+    full = full_space_runs(rows)
+    for r, is_full in zip(rows, full):
+        if is_full:
             e, c = number(r.get("err_truth"), finite=True), number(r.get("wall_s_per_sim_s"), finite=True)
             if e is not None and c is not None:
                 fronts.setdefault(r["scenario"], []).append((e, c))
-                sessions.setdefault(r["scenario"], set()).add(_session(r))
-    fronts = {k: pareto_front(v) for k, v in fronts.items()}
+        if r.get("ladder") and r.get("status") == "ok":
+            sessions.setdefault(r["scenario"], set()).add(_session(r))
+    fronts = {k: pareto_front(v) for k, v in fronts.items() if k in sessions}
     out = []
     for r in rows:
         e, c = number(r.get("err_truth"), finite=True), number(r.get("wall_s_per_sim_s"), finite=True)
@@ -215,6 +219,18 @@ def with_frontier(rows: Sequence[Mapping[str, object]]) -> list[dict]:
             r = dict(r) | {"speedup_equal_accuracy": speedup, "frontier_note": note, "timed_beside_ladder": beside}
         out.append(dict(r))
     return out
+
+
+def full_space_runs(rows: Sequence[Mapping[str, object]]) -> list[bool]:
+    """Per row, whether it is one of its scenario's full-space runs: a run (status ok) of the solver of the
+    scenario's ladder rows on their mesh (rows without `solver` or `mesh` columns: the ladder rows alone). A run
+    carried from another mesh, or of another solver, is not: the front is what the full-space solver costs on the
+    scene as given."""
+    ladder = {(r.get("scenario"), r.get("solver"), r.get("mesh")) for r in rows
+              if r.get("ladder") and r.get("status") == "ok"}
+    return [r.get("status") == "ok" and (bool(r.get("ladder")) or (
+                r.get("solver") is not None and (r.get("scenario"), r.get("solver"), r.get("mesh")) in ladder))
+            for r in rows]
 
 
 def _session(row: Mapping[str, object]) -> str | None:

@@ -17,7 +17,8 @@ Each case (a suite member) is advanced with the default solver until a contact p
 then `--settle` steps more: the mid-contact state. From it every configuration (`linear:threads`: the linear
 solver, and the thread budget of MKL and of the element assembly, entered with `threadpool_limits`) steps the same
 `--steps` steps after an untimed warm-up step, one configuration after the other in the same run. Per step it
-reports the wall time and where it went: assembly (gradient and Hessian kernels, `gradient_hessian`),
+reports the wall time and where it went: assembly (gradient and Hessian kernels, `gradient_hessian`, and the
+chord test's gradient alone, `gradient`),
 factorisation and solve (the factoriser's calls), line search (energy evaluations), other (the rest: copies,
 residuals); Newton iterations per step; and the end state's distance to the first configuration's. `superlu:1` is
 the solver's original path (SuperLU with a fresh ordering per iteration, one-thread assembly).
@@ -150,6 +151,7 @@ def run_config(model: Model, state: State, linear: str, threads: int, steps: int
         clock = _Clock()
         totals = clock.totals
         clock.wrap(solver, "gradient_hessian", "assembly")
+        clock.wrap(solver, "gradient", "assembly")  # the chord test's gradient alone (`NewtonSettings.chord`)
         clock.wrap(solver, "energy", "line_search")
         if linear != "cg":
             clock.wrap(solver.factoriser, "factorize", "factorisation")

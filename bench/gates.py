@@ -19,7 +19,7 @@ A verdict is `passed`, `failed` or `undecidable`: a `max` gate on an error again
 gate marked `against_truth`) whose limit is below 3x the error estimate of the row's truth, where that truth is
 uncertified (`analysis.truth.decidable`), is undecidable: neither passed nor failed, and no failure of
 `frictionbench gate`; so is a gate on `speedup_equal_accuracy` of a row more accurate than its whole ladder, and a
-`min` gate on it whose row is less accurate than the ladder's coarsest run (its number is an upper bound: below the
+`min` gate on it whose row is less accurate than every full-space run (its number is an upper bound: below the
 limit it fails, at or above it nothing is proven). A `max` gate on an outcome's error against the truth
 (`analysis.schema.OUTCOMES`, e.g. `slide_err_truth`) is judged against that outcome's own convergence: undecidable
 where the truth's ladder did not certify the outcome (`truth_<name>_certified`) and the limit is below 3x its
@@ -97,7 +97,7 @@ UNCERTIFIED = "the scenario's truth is uncertified and its error estimate too la
 OUTCOME_UNCERTIFIED = ("the truth's ladder did not certify this outcome and its estimate is too large to judge this "
                        "limit")
 NO_LADDER_COST = "the row is more accurate than its whole ladder: no full-space cost to compare with"
-BOUND_ONLY = ("an upper bound (the row is less accurate than the ladder's coarsest run) at or above the limit proves "
+BOUND_ONLY = ("an upper bound (the row is less accurate than every full-space run) at or above the limit proves "
               "nothing")
 
 
@@ -106,7 +106,7 @@ def undecidable_reason(row: pd.Series, gate: dict) -> str:
     truth whose estimate is too large for the limit (`analysis.truth.decidable`; for an outcome's error, the truth's
     certificate and estimate of that outcome), or a gate on the speedup at equal accuracy of a row more accurate
     than its whole ladder (it has no number, only its `frontier_note`), or a `min` gate on it met only by an upper
-    bound (a row less accurate than the ladder's coarsest run: `AT_MOST`)."""
+    bound (a row less accurate than every full-space run: `AT_MOST`)."""
     if gate["metric"] == "speedup_equal_accuracy":
         if is_missing(row.get("speedup_equal_accuracy")):
             return NO_LADDER_COST if row.get("frontier_note") == MORE_ACCURATE else ""

@@ -1,9 +1,10 @@
 """The matrix runner: every scenario of a suite with the full-space reference and every solver variant.
 
-Phases: (1) full-space references of every member (also the training data) and, with a truth, each member's truth
-ladder, (2) reduced models trained per mesh shape on the suite's training split (cached; on the training members'
-references, or on their truths for a variant whose `training` is "truth"), (3) every variant on every member (and
-on the other mesh of the shape, for remeshing), (4) metrics against the references, the rows built by
+Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
+shape on the suite's training split (cached; on the training members' references), (3) with a truth, each member's
+truth ladder, the runs of (5) filling the slots its last levels leave idle, (4) the models of the variants whose
+`training` is "truth", on the training members' truths, (5) every variant on every member (and on the other mesh
+of the shape, for remeshing), (6) metrics against the references, the rows built by
 `analysis.rows.collect_rows` -> results.csv and report.html. Each run is a folder of the `RunStore` keyed by a
 hash of its scenario and settings: an interrupted run resumes with what is missing.
 Runs execute through a pluggable executor (`executors.make_executor`: a local process pool or a Dask cluster):
@@ -162,14 +163,18 @@ MAX_ATTEMPTS = 3
 
 def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, executor: str,
               desc: str, then: Callable[[Task], Sequence[Task]] | None = None,
-              ahead: Callable[[], Sequence[Task]] | None = None, truths: TruthStore | None = None) -> int:
+              ahead: Callable[[], Sequence[Task]] | None = None, truths: TruthStore | None = None,
+              later: Sequence[Task] = ()) -> int:
     """Execute the tasks not yet done, `jobs` at a time, with a progress bar; returns how many were computed.
 
     The client keeps at most `jobs` tasks in flight (the executor's `slots`: more on a Dask cluster of more workers)
     and chooses each one it submits: first the tasks asked for
     (`tasks`, then what `then` returns), in the order asked; where none waits and a slot would stay idle, the first
     task of `ahead()` (where given: tasks worth starting before anything asks for them, a ladder's next levels, most
-    wanted first) not yet stored, asked for, in flight or tried. A task run ahead is stored like any (a valid run);
+    wanted first) not yet stored, asked for, in flight or tried; where none of those is left either, the next of
+    `later` (tasks of a later phase that need nothing of this one, e.g. the variants' runs beside the ladders' last
+    levels: each submitted only to a slot that would stay idle while a task asked for runs, stored like `ahead`'s,
+    and, unlike them, finished before the call returns). A task run ahead is stored like any (a valid run);
     asked for later, it is followed at once (or once it finishes); one still in flight when nothing asked for is
     left is abandoned (the executor stops it). Each distinct mesh and artefact is shared with the workers once; the
     client stores each result as it arrives, so an interruption costs only the tasks in flight (a Dask task whose
@@ -227,6 +232,8 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
     with make_executor(executor, jobs) as ex, tqdm(total=total, desc=desc, unit="run") as bar:
         shared: dict = {}
         pending: dict = {}
+        spare = deque(later)
+        later_keys = {t.key for t in later}
         attempts: dict[str, int] = {}
         lost = []
 
@@ -250,12 +257,21 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
                     return t
             return None
 
+        def next_later() -> Task | None:
+            """The first task of `later` not yet stored, asked for, in flight or tried."""
+            while spare:
+                t = spare.popleft()
+                if t.key not in asked and t.key not in flying and t.key not in tried and not store.done(t.key):
+                    return t
+            return None
+
         def fill() -> None:
-            """Submit tasks while a slot is free (the waiting ones first, then ones ahead); bring the bar up to date."""
+            """Submit tasks while a slot is free (the waiting ones first, then ones ahead, then later ones); bring
+            the bar up to date."""
             while len(pending) < ex.slots:
                 if waiting:
                     submit(waiting.popleft())
-                elif (t := next_ahead()) is not None:
+                elif asked & flying and (t := next_ahead() or next_later()) is not None:
                     tried.add(t.key)
                     submit(t)
                 else:
@@ -266,7 +282,7 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
             bar.update(done - bar.n)
 
         fill()
-        while waiting or asked & flying:
+        while waiting or asked & flying or flying & later_keys:  # a later task in flight is finished, not dropped
             f = next(iter(ex.as_completed(pending)))
             t = pending.pop(f)
             flying.discard(t.key)
@@ -283,7 +299,7 @@ def run_tasks(tasks: Sequence[Task], store: RunStore, device: str, jobs: int, ex
                     lost.append(err)
             else:
                 store.save(t.key, result.trajectory, result.stats | {"timed_in": SESSION})
-                if truths is not None:
+                if truths is not None and t.key not in later_keys:
                     truths.put(t.key, store)
                 computed += 1
                 if t.key not in asked:
@@ -337,17 +353,15 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
     run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
     truths = TruthStore(truth_store_root(truth_store), device) if spec and use_truth_store else None
-    ladders = run_ladders(suite, spec, store, device, jobs, executor, reference, truths) if spec else {}
-    resolved = prepare_variants(suite, variants, store, refs, out / "models", device, ladders)
-    tasks = []
-    for m in suite.scenarios:
-        for v, params in member_variants(resolved, variants, m):
-            if isinstance(params, str):  # no model for the member's shape: a failed row with the reason
-                continue
-            task = variant_task(v, m, params)
-            if isinstance(task, Task):
-                tasks.append(task)
-    run_tasks(tasks, store, device, jobs, executor, "solver variants")
+    # the variants that need no truth are prepared (trained) first, so that their runs fill the slots the ladders'
+    # last levels leave idle; those trained on truths, after the ladders
+    early = [v for v in variants if v.training != "truth"]
+    resolved = prepare_variants(suite, early, store, refs, out / "models", device)
+    ladders = (run_ladders(suite, spec, store, device, jobs, executor, reference, truths,
+                           later=variant_tasks(suite, resolved, early)) if spec else {})
+    late = [v for v in variants if v.training == "truth"]
+    resolved = list(resolved) + list(prepare_variants(suite, late, store, refs, out / "models", device, ladders))
+    run_tasks(variant_tasks(suite, resolved, variants), store, device, jobs, executor, "solver variants")
     rows = collect_rows(suite, refs, StoreRuns(store, resolved, variants), ladders, spec)
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
@@ -498,15 +512,17 @@ class Ladder:
 
 
 def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int, executor: str,
-                reference: str = REFERENCE, truths: TruthStore | None = None) -> dict[str, dict[str, Ladder]]:
+                reference: str = REFERENCE, truths: TruthStore | None = None, later: Sequence[Task] = ()
+                ) -> dict[str, dict[str, Ladder]]:
     """Every member's truth ladder (`spec.integrator`) climbed level by level until `ladder_continues` says stop,
     each member on its own (its next level is asked for as soon as its last one is stored); then, for that member,
     the ladders of `spec.ladders` to the same level as its truth. A slot that would stay idle runs a climbing
     ladder's next levels ahead (`levels_ahead`; never beyond `spec.depth`, never before a run asked for): a level
     is added to its ladder only once the climb below it asks for it, so the ladders are those of the climb level by
     level, and a level run ahead of a ladder that stopped below it is only stored. Every run is an ordinary run of
-    the store (cached, resumable), and of `truths` where given (`run_tasks`). Returns scenario -> integrator ->
-    Ladder (the truth's integrator first)."""
+    the store (cached, resumable), and of `truths` where given (`run_tasks`); a slot that would stay idle even so
+    runs a task of `later` (`run_tasks`: the variants' runs that need no truth, beside the last levels of the
+    slowest ladders). Returns scenario -> integrator -> Ladder (the truth's integrator first)."""
     ladders = {m.scenario.name: {spec.integrator: Ladder(m, spec.integrator, reference, spec)}
                for m in suite.scenarios}
     climbing: dict[str, tuple[Ladder, int]] = {}  # task key -> (truth ladder, level) of the level asked for
@@ -547,7 +563,7 @@ def run_ladders(suite, spec: TruthSpec, store: RunStore, device: str, jobs: int,
 
     kind = "dt / 2^level" if spec.start_tol is None else f"tol {spec.start_tol:g} / {TOLERANCE_FACTOR:g}^level"
     run_tasks([climb(by[spec.integrator], 0) for by in ladders.values()], store, device, jobs, executor,
-              f"truth ladders ({kind})", then=then, ahead=ahead, truths=truths)
+              f"truth ladders ({kind})", then=then, ahead=ahead, truths=truths, later=later)
     previous: dict[int, Trajectory | None] = {}
     for ladder, task in others:
         if not ladder.failed:
@@ -563,6 +579,17 @@ def levels_ahead(climbing: Sequence[tuple[Ladder, int]], depth: int) -> list[tup
     for at most one run (the next level, often in flight already), so only a truth ladder's end, asking for its
     frontier ladders' levels at once, may wait for a run ahead to end."""
     return [(ladder, k + gap) for gap in range(1, depth + 1) for ladder, k in climbing if k + gap <= depth]
+
+
+def variant_tasks(suite, resolved, variants: Sequence[Variant]) -> list[Task]:
+    """The runs of `variants` on every member of `suite`, member by member (`member_variants` on the prepared
+    `resolved` pairs; a variant with no model for a member's shape, or not applicable to it, has none)."""
+    tasks = []
+    for m in suite.scenarios:
+        for v, params in member_variants(resolved, variants, m):
+            if not isinstance(params, str) and isinstance(task := variant_task(v, m, params), Task):
+                tasks.append(task)
+    return tasks
 
 
 def variant_task(v: Variant, member: SuiteMember, params: dict) -> Task | str:

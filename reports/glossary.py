@@ -41,7 +41,7 @@ GLOSSARY: dict[str, str] = {
                                  "(interpolated log-log on the front of its full-space runs) over the run's own cost. "
                                  "Larger is better; measured where the run's accuracy lies within the full-space "
                                  "runs' range.",
-    "upper bound": "a run less accurate than the full-space solver's coarsest run is compared with that run's cost, "
+    "upper bound": "a run less accurate than every full-space run is compared with the least accurate one's cost, "
                    "for which the full-space solver is at least as accurate: its speedup at equal accuracy is at "
                    "most the number shown, written <= x.",
     "frontier note": f"column frontier_note: why a speedup at equal accuracy is an upper bound (\"{AT_MOST}\") or "

@@ -42,6 +42,9 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     newton_tol = 1e-4               # optional: the ladder runs' Newton tolerance [fraction of L per second, in
                                     # [1e-12, 0.01]; default the solver's, 1e-5]: a run of T seconds drifts by at
                                     # most newton_tol T L, so keep newton_tol T well below tol
+    chord = true                    # optional (default false): the ladder runs test Newton's convergence with the
+                                    # last factorisation first (`NewtonSettings.chord`): the same tolerance test,
+                                    # no Hessian or factorisation on the iteration that ends a solve
 
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }
@@ -113,7 +116,8 @@ class TruthSpec:
     `contact.lag` of its runs (`start`: the scenario's own; a numerical choice, so every lag converges to the same
     truth); `newton_tol`: its runs' Newton tolerance [fraction of L per second] (None: the solver's default, 1e-5).
     A step's test bounds its velocity error by newton_tol L, so a run of duration T drifts by at most
-    newton_tol T L: a tolerance with newton_tol T well below `tol` cannot move the truth by more than that."""
+    newton_tol T L: a tolerance with newton_tol T well below `tol` cannot move the truth by more than that.
+    `chord`: its runs test Newton's convergence with the last factorisation first (`NewtonSettings.chord`)."""
 
     tol: float = 0.005
     depth: int = 4
@@ -123,12 +127,13 @@ class TruthSpec:
     start_tol: float | None = None
     contact_lag: str = "start"
     newton_tol: float | None = None
+    chord: bool = False
 
     @property
     def solver_params(self) -> dict:
         """The full-space solver's parameters of the ladder's runs: its Newton tolerance where `newton_tol` sets
-        one."""
-        return {} if self.newton_tol is None else {"tol": self.newton_tol}
+        one, and the chord test where `chord` is on."""
+        return ({} if self.newton_tol is None else {"tol": self.newton_tol}) | ({"chord": True} if self.chord else {})
 
     def level_tol(self, k: int) -> float | None:
         """time.tol [fraction of L] of level k of a tolerance ladder; None for a step ladder."""
@@ -141,7 +146,7 @@ class TruthSpec:
         d = ({"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders),
              "kind": self.kind, "contact_lag": self.contact_lag}
              | ({} if self.start_tol is None else {"start_tol": self.start_tol})
-             | ({} if self.newton_tol is None else {"newton_tol": self.newton_tol}))
+             | ({} if self.newton_tol is None else {"newton_tol": self.newton_tol}) | {"chord": self.chord})
         d |= {k: v for k, v in (("tol", tol), ("depth", depth), ("integrator", integrator)) if v is not None}
         return truth_spec(d, where, sep)
 
@@ -252,7 +257,8 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 
 def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
-    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag", "newton_tol"))
+    t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag", "newton_tol",
+                            "chord"))
     d = TruthSpec()
     tol = _number_in(t.get("tol", d.tol), TRUTH_TOL_RANGE, f"{where}{sep}tol", "a fraction of L")
     depth = t.get("depth", d.depth)
@@ -285,9 +291,13 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     if newton_tol is not None:
         newton_tol = _number_in(newton_tol, TRUTH_NEWTON_TOL_RANGE, f"{where}{sep}newton_tol",
                                 "a fraction of L per second")
+    chord = t.get("chord", d.chord)
+    if not isinstance(chord, bool):
+        raise ScenarioError(f"{where}{sep}chord", chord, "expected true or false")
     return TruthSpec(tol=tol, depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)), kind=kind,
-                     start_tol=start_tol, contact_lag=lag, newton_tol=newton_tol)
+                     start_tol=start_tol, contact_lag=lag, newton_tol=newton_tol,
+                     chord=chord)
 
 
 def _number_in(value: object, bounds: tuple[float, float], field: str, unit: str) -> float:

@@ -90,6 +90,11 @@ class NewtonProblem(Protocol):
         """Largest alpha <= 1 for which y + alpha dy is admissible (1 without a barrier)."""
         ...
 
+    def chord_direction(self, y: np.ndarray) -> Direction | None:
+        """The chord direction -H^-1 g(y) with the Hessian H of the last `direction` (its factorisation reused, the
+        gradient g at y; None where no factorisation is held): the convergence test of `minimise(chord=...)`."""
+        ...
+
 
 def feasible_step(phi: np.ndarray, rate: np.ndarray) -> float:
     """Largest alpha <= 1 keeping every contact point strictly above the plane: phi (p,) signed distances [m],
@@ -101,14 +106,26 @@ def feasible_step(phi: np.ndarray, rate: np.ndarray) -> float:
 
 
 def minimise(problem: NewtonProblem, y: np.ndarray, tol_v: float, max_iter: int,
-             search: LineSearch = LineSearch()) -> NewtonResult:
+             search: LineSearch = LineSearch(), chord: int | None = None) -> NewtonResult:
     """Newton's method from y: stop when the step norm is below tol_v [m/s] (taking that last step, capped), or
     when a line search finds no decrease down to alpha = 2^-max_halvings (a stall: y is kept, not converged), or
-    after max_iter iterations (not converged)."""
+    after max_iter iterations (not converged).
+
+    `chord` (None: off): from iteration `chord` on, each iteration first tests convergence with the chord direction
+    (`NewtonProblem.chord_direction`: the last factorisation reused, a gradient and a back-substitution); where that
+    step is below tol_v it is the last step, else the iteration takes the Newton direction as without it. The
+    iteration that ends a converged solve then costs no Hessian and no factorisation; the end point differs from
+    Newton's by the difference of two steps each below tol_v."""
     E = problem.energy(y)
     halvings = lin_iters = stalls = 0
     residual, it = np.inf, 0
     for it in range(1, max_iter + 1):
+        if chord is not None and it >= chord and (c := problem.chord_direction(y)) is not None:
+            lin_iters += c.linear_iters
+            residual = problem.step_norm(c.dy)
+            if residual < tol_v:
+                y = y + problem.max_step(y, c.dy) * c.dy
+                return NewtonResult(y, it, residual, halvings, lin_iters, stalls, True)
         d = problem.direction(y)
         lin_iters += d.linear_iters
         residual = problem.step_norm(d.dy)

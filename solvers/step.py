@@ -37,6 +37,11 @@ class StepProblem(ABC):
     def direction(self, y: np.ndarray) -> Direction:
         """The Newton direction at y (from the PSD-projected Hessian)."""
 
+    def chord_direction(self, y: np.ndarray) -> Direction | None:
+        """The chord direction at y (the last direction's factorisation reused; `solvers.newton.minimise`), None
+        where the backend keeps none (the default)."""
+        return None
+
     @abstractmethod
     def step_norm(self, dy: np.ndarray) -> float:
         """The size of a step dy in velocity units [m/s]."""

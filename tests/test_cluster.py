@@ -145,20 +145,20 @@ NOT_REPEATABLE = {"setup_s", "warmup_s", "train_s", "step_ms_median", "step_ms_p
 
 
 def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
-    """The quick suite's references (one training member, the held-out one) and two reduced variants (a LiCROM
+    """The quick-undamped suite's references (one training member, the held-out one) and two reduced variants (a LiCROM
     checkpoint and a POD basis, both trained on the client and carried to the workers): the client's store gets
     every run, identical to a process-pool run's (trajectories, bases, metrics). The full-space runs are bitwise
     equal (MKL's reproducible mode, `solvers.linalg`); a reduced run's dense products (torch evaluating the neural
     field's basis, BLAS) may round differently in a worker whose thread pools Dask's nanny started single-threaded
     than in one limited at run time, so its basis and states are compared to round-off (1e-12 of their size)."""
     variants = [Variant("licrom", LICROM | {"epochs": 2}, label="r20"), Variant("pod", {"r": 8}, label="r8")]
-    only = "quick/p[14]_mu0.[13]"  # p1_mu0.1 (train) and p4_mu0.3 (test)
+    only = "quick-undamped/p[14]_mu0.[13]"  # p1_mu0.1 (train) and p4_mu0.3 (test)
     # without the truth ladder: its runs are full-space runs like the references, through the same tasks
-    local = pd.read_csv(run_suite("quick", tmp_path / "process", variants, jobs=2, executor="process",
+    local = pd.read_csv(run_suite("quick-undamped", tmp_path / "process", variants, jobs=2, executor="process",
                                   report=False, only=only, with_truth=False))
     c = cluster(2)  # after the local run: the workers start with a copy of its compiled kernels
     assert_isolated(c.address, tmp_path)
-    remote = pd.read_csv(run_suite("quick", tmp_path / "dask", variants, jobs=2, executor="dask", report=False,
+    remote = pd.read_csv(run_suite("quick-undamped", tmp_path / "dask", variants, jobs=2, executor="dask", report=False,
                                    only=only, with_truth=False))
     assert len(remote) == len(local) == 2 * 3 and (remote["status"] == "ok").all()
     local, remote = (df.set_index(["scenario", "variant"]).sort_index() for df in (local, remote))

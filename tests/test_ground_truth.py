@@ -9,11 +9,12 @@ from contextlib import redirect_stderr, redirect_stdout
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel, proj_rmse_rel
-from frictionbench.analysis.truth import certified_horizon, richardson, with_frontier
+from frictionbench.analysis.truth import AT_MOST, MORE_ACCURATE, certified_horizon, richardson, with_frontier
 from frictionbench.bench.cli import main
 from frictionbench.bench.compare import compare_results
 from frictionbench.bench.gates import BOUND_ONLY, NO_LADDER_COST, UNCERTIFIED, check, load_gates
@@ -50,7 +51,7 @@ def test_the_truth_table_has_defaults_and_validated_fields():
     ({"tol": "small"}, "truth.tol", "small"), ({"integrator": "rk4"}, "truth.integrator", "rk4"),
     ({"ladders": ["euler"]}, "truth.ladders[0]", "euler"), ({"depht": 3}, "depht", "3"),
     ({"newton_tol": 0.0}, "truth.newton_tol", "0.0"), ({"newton_tol": 0.1}, "truth.newton_tol", "0.1"),
-    ({"newton_tol": True}, "truth.newton_tol", "True")])
+    ({"newton_tol": True}, "truth.newton_tol", "True"), ({"chord": "yes"}, "truth.chord", "yes")])
 def test_a_bad_truth_table_is_refused_naming_the_field_and_value(truth, field, value):
     with pytest.raises(ScenarioError) as err:
         suite_from_dict(_suite_dict(**truth))
@@ -64,6 +65,37 @@ def test_a_truth_newton_tolerance_reaches_the_ladders_runs():
     assert Ladder(suite.scenarios[0], spec.integrator, spec=spec).task(2).params == {"tol": 1e-4}
     plain = suite_from_dict(_suite_dict())
     assert Ladder(plain.scenarios[0], plain.truth.integrator, spec=plain.truth).task(2).params == {}
+    chord = suite_from_dict(_suite_dict(newton_tol=1e-4, chord=True)).truth
+    assert chord.solver_params == {"tol": 1e-4, "chord": True} and chord.with_(depth=3).chord
+
+
+def test_the_chord_test_ends_a_solve_without_a_factorisation_and_meets_the_same_tolerance():
+    """On a damped slide under the fixed-point lag (the default suite's truth settings, a few steps in contact),
+    the chord test leaves the iterations per step unchanged but factorises less, and the end state lies within
+    what the Newton tolerance allows of the plain run's."""
+    from frictionbench.bench.benchmark_step import mid_contact_state, truth_scenario
+    from frictionbench.scenarios.meshes import load_mesh
+    from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
+    from frictionbench.solvers.model import State, build_model
+
+    sc, params = truth_scenario("quick/p1_mu0.5", 2)
+    model = build_model(sc, load_mesh(sc.mesh))
+    state, _, _ = mid_contact_state(model, 1)
+    ends, factorisations = {}, {}
+    for chord in (False, True):
+        solver = FullSpaceSolver(model, settings=NewtonSettings(linear="superlu", **(params | {"chord": chord})))
+        calls = []
+        factorize = solver.factoriser.factorize
+        solver.factoriser.factorize = lambda values: (calls.append(1), factorize(values))[1]
+        s = state
+        for _ in range(4):
+            out = State(s.x, s.v, s.t)
+            assert solver.step(s, out, sc.time.dt).converged
+            s = out
+        ends[chord], factorisations[chord] = s.x, len(calls)
+    assert factorisations[True] < factorisations[False]
+    drift = np.abs(ends[True] - ends[False]).max() / model.L
+    assert 0.0 < drift < 4 * params["tol"] * sc.time.dt  # four steps' velocity errors of at most tol L each
 
 
 def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):
@@ -205,14 +237,14 @@ def _report(out: Path) -> str:
 def test_a_speedup_gate_on_a_run_more_accurate_than_the_ladder_is_undecidable():
     rows = pd.DataFrame([{"suite": "quick", "scenario": "quick/a", "solver": "licrom", "variant": "m",
                           "status": "ok", "speedup_equal_accuracy": None, "frontier_note": note}
-                         for note in ("more accurate than the ladder", "no ladder")])
+                         for note in (MORE_ACCURATE, "no ladder")])
     gate = {"suite": "quick", "variant": "licrom/m", "metric": "speedup_equal_accuracy", "min": 10.0}
     verdicts = check(rows, [gate], "quick")
     assert [(v.status, v.reason) for v in verdicts] == [("undecidable", NO_LADDER_COST), ("failed", "")]
 
 
 def test_a_speedup_gate_met_only_by_an_upper_bound_is_undecidable_and_a_bound_below_it_fails():
-    note = "at most: less accurate than the coarsest ladder run"
+    note = AT_MOST
     rows = pd.DataFrame([{"suite": "quick", "scenario": f"quick/{i}", "solver": "licrom", "variant": "m",
                           "status": "ok", "speedup_equal_accuracy": s, "frontier_note": n}
                          for i, (s, n) in enumerate([(20.0, note), (5.0, note), (20.0, "")])])
@@ -226,11 +258,11 @@ def test_the_shipped_speed_gates_bind_on_speed_at_equal_accuracy_and_not_on_per_
     gates = load_gates()
     assert all(g.get("advisory") for g in gates if g["metric"] == "speedup")  # a ratio of step times: noise
     binding = [g for g in gates if g["metric"] == "speedup_equal_accuracy" and not g.get("advisory")]
-    assert {g["suite"] for g in binding} == {"quick", "quick-damped", "paper-damped"}
+    assert {g["suite"] for g in binding} == {"quick", "quick-undamped", "paper-damped"}
     assert all("min" in g for g in binding)
     # that their labels exist in the suites' default sets or a named set: tests/test_runner.py's guard over all gates
     damped = next(g for g in binding if g["suite"] == "paper-damped")
-    bound = "at most: less accurate than the coarsest ladder run"
+    bound = AT_MOST
     cases = [(1.5, ""), (0.9, ""), (2.0, bound), (0.9, bound)]  # measured: passes, fails; bounds: nothing, fails
     rows = pd.DataFrame([{"suite": "paper-damped", "scenario": f"paper-damped/{i}", "solver": "licrom",
                           "variant": damped["variant"][-1].split("/", 1)[1], "status": "ok",
@@ -261,8 +293,8 @@ def test_undecidable_is_no_failure_of_gate_nor_a_regression_of_compare(tmp_path:
 
 
 def test_the_shipped_suites_with_a_truth():
-    assert load_suite("quick").truth is not None and load_suite("paper").truth is not None
-    assert load_suite("quick").truth.depth <= 2  # CI-sized
+    assert all(load_suite(name).truth is not None for name in ("quick", "quick-undamped", "paper", "paper-damped"))
+    assert load_suite("quick-undamped").truth.depth <= 2  # a CI-sized ladder that is not expected to certify
 
 
 def test_the_deepest_ladder_run_passes_the_resource_guard_before_any_work():
@@ -289,17 +321,18 @@ def test_paper_damped_is_the_papers_matrix_with_material_damping():
     assert damped.truth == replace(paper.truth, contact_lag="fixed-point") and paper.truth.contact_lag == "start"
 
 
-def test_quick_damped_is_quick_with_paper_dampeds_damping_and_truth_lag():
-    quick, twin, damped = load_suite("quick"), load_suite("quick-damped"), load_suite("paper-damped")
+def test_quick_is_quick_undamped_with_paper_dampeds_damping_and_truth_lag():
+    quick, twin, damped = load_suite("quick-undamped"), load_suite("quick"), load_suite("paper-damped")
     assert [(m.split, dict(m.labels)) for m in twin.scenarios] == [(m.split, dict(m.labels)) for m in quick.scenarios]
     base = damped.scenarios[0].scenario
     for a, b in zip(quick.scenarios, twin.scenarios):
         assert a.scenario.material.damping_ratio is None and a.scenario.contact.damping_ratio is None
         assert (b.scenario.material, b.scenario.contact) == (base.material, base.contact)  # paper-damped's damping
+        assert b.scenario.name == a.scenario.name.replace("quick-undamped/", "quick/")
         undamped = replace(b.scenario, name=a.scenario.name, description=a.scenario.description, tags=a.scenario.tags,
                            effects=a.scenario.effects, material=a.scenario.material, contact=a.scenario.contact)
         assert undamped == a.scenario  # only the damping differs: mesh, plane, drop and time are quick's
-    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point", newton_tol=1e-4)
+    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point", newton_tol=1e-4, chord=True)
 
 
 def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):
@@ -319,7 +352,7 @@ def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):
     assert (euler["err_truth"] > 0).all() and bdf2["err_truth"].min() == 0.0  # the truth is the finest BDF2 run
 
 
-@pytest.mark.parametrize("name", ["quick", "paper"])
+@pytest.mark.parametrize("name", ["quick", "quick-undamped", "paper", "paper-damped"])
 def test_shipped_truths_pass_the_guard(name):
     from frictionbench.bench.cli import parse_variants
     from frictionbench.bench.runner import guard_resources, truth_config

@@ -43,7 +43,7 @@ def shortened(name: str, steps: int):
 def contact_hessians():
     """Gradient (3n,) and block Hessian values (nnzb, 3, 3) of quick/p1_mu0.5 at two states in contact, with the
     solver that assembled them."""
-    sc = shortened("quick/p1_mu0.5", 14)
+    sc = shortened("quick-undamped/p1_mu0.5", 14)
     model = build_model(sc, load_mesh(sc.mesh))
     solver = FullSpaceSolver(model, settings=NewtonSettings(linear="superlu"))
     traj, _ = simulate(model, solver)
@@ -89,7 +89,7 @@ def test_pardiso_agrees_with_superlu_on_assembled_hessians(contact_hessians):
 
 @needs_pardiso
 @pytest.mark.parametrize("name, steps", [("verify/block_slide", 40), ("verify/block_stick", 40),
-                                         ("hard/t30-slide", 30), ("hard/E1e9", 20), ("quick/p1_mu0.5", 20)])
+                                         ("hard/t30-slide", 30), ("hard/E1e9", 20), ("quick-undamped/p1_mu0.5", 20)])
 def test_trajectories_agree_between_pardiso_and_superlu(name, steps):
     sc = shortened(name, steps)
     model = build_model(sc, load_mesh(sc.mesh))
@@ -170,9 +170,9 @@ def test_the_step_benchmark_steps_the_truth_settings_beside_the_reference_settin
     from frictionbench.bench.benchmark_step import benchmark, truth_scenario
     from frictionbench.scenarios.errors import ScenarioError
 
-    ref, truth = benchmark(["quick-damped/p1_mu0.5"], ["pardiso:1"], steps=1, settle=1, truth_levels=[1])
+    ref, truth = benchmark(["quick/p1_mu0.5"], ["pardiso:1"], steps=1, settle=1, truth_levels=[1])
     assert (ref["integrator"], ref["contact_lag"], ref["lag_solves_per_step"]) == ("backward-euler", "start", 1.0)
-    # level 1 of quick-damped's truth: BDF2 at dt/2 with the contact lag at each step's fixed point, two steps for
+    # level 1 of quick's truth: BDF2 at dt/2 with the contact lag at each step's fixed point, two steps for
     # the reference's one (the same simulated time), each one or more solves
     assert (truth["truth_level"], truth["integrator"], truth["contact_lag"]) == (1, "bdf2", "fixed-point")
     assert truth["dt"] == ref["dt"] / 2 and truth["steps"] == 2 and len(truth["newton_iters"]) == 2

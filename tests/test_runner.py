@@ -304,7 +304,7 @@ def test_resolution_runs_every_member_on_its_shapes_other_catalogue_mesh(tmp_pat
     assert not (tmp_path / "bad" / "runs").exists() or not any((tmp_path / "bad" / "runs").iterdir())
 
 
-@pytest.mark.parametrize("suite", ["quick", "quick-damped", "paper", "paper-damped", "hard"])
+@pytest.mark.parametrize("suite", ["quick", "quick-undamped", "paper", "paper-damped", "hard"])
 def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
     """A gate on a label no default run produces would only ever fail as 'matched no row' after a long run. A list
     of labels matches a row of any of them: at least one is in the default matrix, and every one is a label of some

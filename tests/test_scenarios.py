@@ -119,7 +119,7 @@ def without(d: dict[str, Any], path: str) -> dict[str, Any]:
 
 
 @pytest.mark.parametrize(("name", "total", "train", "test"),
-                         [("verify", 12, 12, 0), ("quick", 5, 4, 1), ("quick-damped", 5, 4, 1), ("paper", 34, 30, 4),
+                         [("verify", 12, 12, 0), ("quick", 5, 4, 1), ("quick-undamped", 5, 4, 1), ("paper", 34, 30, 4),
                           ("paper-damped", 34, 30, 4)])
 def test_shipped_suite_loads_with_documented_counts(name: str, total: int, train: int, test: int) -> None:
     suite = load_suite(name)
@@ -131,11 +131,11 @@ def test_shipped_suite_loads_with_documented_counts(name: str, total: int, train
 
 
 def test_list_suites_names_the_shipped_files() -> None:
-    assert list_suites() == ["hard", "paper", "paper-damped", "quick", "quick-damped", "verify"]
+    assert list_suites() == ["hard", "paper", "paper-damped", "quick", "quick-undamped", "verify"]
 
 
 def test_frictionbench_list_aligns_the_suites_counts(capsys) -> None:
-    """Every suite's member counts start in the same column, however long its name (paper-damped, quick-damped)."""
+    """Every suite's member counts start in the same column, however long its name (paper-damped, quick-undamped)."""
     from frictionbench.bench.cli import main
 
     assert main(["list"]) == 0

@@ -208,16 +208,16 @@ def test_the_command_prints_a_suites_time_scales_and_each_ladder_levels_resoluti
     from frictionbench.bench.store import RunStore, run_key
     from frictionbench.scenarios.suites import load_suite
 
-    sc = next(m.scenario for m in load_suite("quick").scenarios if m.scenario.name == "quick/p1_mu0.1")
+    sc = next(m.scenario for m in load_suite("quick-undamped").scenarios if m.scenario.name == "quick-undamped/p1_mu0.1")
     model = build_model(sc, load_mesh(sc.mesh))
     x = initial_state(model).x - (sc.initial.clearance + 1e-3) * model.plane_normal
     run = Trajectory(t=np.array([0.0]), x=x[None], X=model.X, tets=model.tets, surface=model.surface)
     RunStore(tmp_path / "runs").save(run_key(sc, "full", {}, None), run, {})
-    assert main(["timescales", "--suite", "quick", "--only", "quick/p1_mu0.1", "--depth", "1",
+    assert main(["timescales", "--suite", "quick-undamped", "--only", "quick-undamped/p1_mu0.1", "--depth", "1",
                  "--runs", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     scenes, levels = out.split("\n\n")
-    line = next(row for row in scenes.splitlines() if row.startswith("quick/p1_mu0.1")).split()
+    line = next(row for row in scenes.splitlines() if row.startswith("quick-undamped/p1_mu0.1")).split()
     assert line[1] == "cheese/coarse" and float(line[3]) == pytest.approx(3694, rel=1e-3)  # omega_max [rad/s]
     assert float(line[5]) > 0.0  # the patch
     rows = [row.split() for row in levels.splitlines() if row.startswith("cheese/coarse")]

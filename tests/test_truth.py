@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from frictionbench.analysis.truth import (AT_MOST, MIN_ORDER, assess_ladder, certified_horizon, decidable,
+from frictionbench.analysis.truth import (AT_MOST, MIN_ORDER, MORE_ACCURATE, assess_ladder, certified_horizon, decidable,
                                           full_space_cost, ladder_continues, pareto_front, richardson,
                                           speedup_equal_accuracy, wall_s_per_sim_s, with_frontier)
 from frictionbench.solvers.integrators import BDF2, BackwardEuler
@@ -87,7 +87,7 @@ def test_speedup_at_equal_accuracy_interpolates_the_ladder_log_log():
     assert speedup == pytest.approx(5.0) and note == AT_MOST
     assert full_space_cost(front[:1], 0.1) == (10.0, "") and full_space_cost(front[:1], 0.3) == (10.0, AT_MOST)
     speedup, note = speedup_equal_accuracy(front, 0.001, 1.0)
-    assert speedup is None and note == "more accurate than the ladder"
+    assert speedup is None and note == MORE_ACCURATE
 
 
 def test_with_frontier_gives_every_row_of_a_scenario_its_speedup_against_its_own_ladder():
@@ -101,9 +101,29 @@ def test_with_frontier_gives_every_row_of_a_scenario_its_speedup_against_its_own
     out = with_frontier(rows)
     assert [r["speedup_equal_accuracy"] for r in out[:4]] == pytest.approx([1.0] * 4)  # the ladder lies on itself
     assert out[4]["speedup_equal_accuracy"] == pytest.approx(10.0)
-    assert out[5]["speedup_equal_accuracy"] is None and out[5]["frontier_note"] == "more accurate than the ladder"
+    assert out[5]["speedup_equal_accuracy"] is None and out[5]["frontier_note"] == MORE_ACCURATE
     assert out[7]["speedup_equal_accuracy"] is None and out[7]["frontier_note"] == "the truth"
     assert "speedup_equal_accuracy" not in out[6] and "speedup_equal_accuracy" not in out[8]  # failed; no ladder
+
+
+def test_the_front_pools_every_full_space_run_of_the_ladders_solver_on_its_mesh():
+    """A same-dt reference less accurate than the ladder's coarsest run widens the front: a reduced run between
+    the two gets a measured speedup; a run of the solver carried from another mesh, or of another solver, does
+    not join the front."""
+    ladder = [{"scenario": "a", "status": "ok", "solver": "full", "mesh": "m", "ladder": "bdf2", "err_truth": e,
+               "wall_s_per_sim_s": c} for e, c in LADDER]
+    coarsest = max(e for e, _ in LADDER)
+    reduced = {"scenario": "a", "status": "ok", "solver": "licrom", "mesh": "m", "ladder": "",
+               "err_truth": 2 * coarsest, "wall_s_per_sim_s": 0.5}
+    reference = {"scenario": "a", "status": "ok", "solver": "full", "mesh": "m", "ladder": "",
+                 "err_truth": 4 * coarsest, "wall_s_per_sim_s": 1.0}
+    alone = with_frontier(ladder + [reduced])[-1]
+    assert alone["frontier_note"] == AT_MOST
+    pooled = with_frontier(ladder + [reduced, reference])
+    assert pooled[-2]["frontier_note"] == "" and pooled[-2]["speedup_equal_accuracy"] > 1.0 / 0.5
+    assert pooled[-2]["speedup_equal_accuracy"] < alone["speedup_equal_accuracy"]
+    for outsider in ({**reference, "mesh": "other"}, {**reference, "solver": "vbd"}):
+        assert with_frontier(ladder + [reduced, outsider])[-2]["frontier_note"] == AT_MOST
 
 
 def test_the_certified_horizon_ends_before_the_first_frame_out_of_tolerance():

@@ -41,6 +41,11 @@ class NewtonSettings:
 
     max_iter: iterations per attempt; a 20 m/s impact on a soft body needs up to ~200 in its impact step (measured
     on the hard suite), and an attempt that runs out is retried as two half steps (`solvers.simulate`).
+
+    chord: each Newton iteration but a step's first tests convergence first with the last factorisation (a
+    gradient and a back-substitution, `solvers.newton.minimise`): the iteration that ends a solve, a fixed point's
+    re-lag above all, then costs no Hessian and no factorisation. Off by default (the references' settings);
+    the truth ladders' `[truth] chord` turns it on.
     """
 
     tol: float = 1e-5
@@ -49,6 +54,7 @@ class NewtonSettings:
     cg_tol: float = 1e-10
     armijo: float = 1e-4
     max_halvings: int = 40
+    chord: bool = False
 
 
 class BlockPattern:
@@ -108,6 +114,7 @@ class FullSpaceSolver:
             self.factoriser = make_factoriser(linear, self.pattern.offsets, self.pattern.cols, model.n)
             linear = self.factoriser.name
         self.linear = linear
+        self.factored = False  # whether the factoriser holds a factorisation (`_StepProblem.chord_direction`)
         self.elements = ElementRanges(model.tets.shape[0], d, thread_budget())
         self.info = {"linear_solver": linear, "assembly_threads": self.elements.threads}
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
@@ -142,14 +149,15 @@ class FullSpaceSolver:
         self.launchers = LAUNCHERS.build(self, self.terms)
 
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
-    def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True) -> None:
-        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values) at x: the launcher of
-        each of the model's terms (`solvers.full.terms`) launches its kernels.
+    def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True, hessian: bool = True) -> None:
+        """Energy (mode 0, into energy_buf) or gradient + Hessian (mode 1, into grad / values; hessian=False: the
+        gradient alone, `values` left as scratch) at x: the launcher of each of the model's terms
+        (`solvers.full.terms`) launches its kernels.
 
         inertia=False drops the inertial term (static equilibrium); gravity stays if the scene has it.
         """
         for launcher in self.launchers:
-            launcher.launch(x, h, mode, inertia)
+            launcher.launch(x, h, mode, inertia, hessian)
 
     def energy(self, x: wp.array, h: float, inertia: bool = True) -> float:
         """E(x) [J] of the current step's incremental potential."""
@@ -163,11 +171,17 @@ class FullSpaceSolver:
         self.values.zero_()
         self._launch_terms(x, h, 1, inertia)
 
+    def gradient(self, x: wp.array, h: float, inertia: bool = True) -> None:
+        """Fill self.grad (n,) vec3d [N] at x (the element terms' Hessians skipped; `values` is scratch after)."""
+        self.grad.zero_()
+        self._launch_terms(x, h, 1, inertia, hessian=False)
+
     # ----- linear solve and line search ---------------------------------------------------------------
     def _solve(self) -> tuple[np.ndarray, int]:
         """Newton direction dx = -H^-1 grad, (n, 3), and the linear iteration count (0 for direct)."""
         if self.linear != "cg":
             self.factoriser.factorize(self.values.numpy())
+            self.factored = True
             return self.factoriser.solve(-self.grad.numpy().ravel()).reshape(-1, 3), 0
         wp.launch(_negate_kernel, self.model.n, device=self.device, inputs=[self.grad, self.rhs])
         self.dx.zero_()
@@ -239,13 +253,15 @@ class _LaggedStep:
         most max_iter iterations (None: the settings')."""
         sv, lag, s = self.solver, self.lag, self.solver.settings
         problem = _StepProblem(sv, lag.h_eff)
+        first = x0 is None
         if x0 is None:
             x0 = lag.y_tilde.copy()
             if problem.capping:
                 reach = (lag.y_bar - self.x_start) + lag.h_eff * lag.v_bar  # x_hat - x^n (h v^n for backward Euler)
                 x0 = self.x_start.copy() + reach * problem.max_step(self.x_start, reach)
+        chord = (2 if first else 1) if s.chord else None  # a step's first solve starts far from the last factor's
         return minimise(problem, x0, s.tol * sv.model.L, max_iter or s.max_iter,
-                        LineSearch(s.armijo, s.max_halvings))
+                        LineSearch(s.armijo, s.max_halvings), chord)
 
     def velocity(self, x: np.ndarray) -> np.ndarray:
         """The end-of-step velocities of positions x (n, 3) [m/s]."""
@@ -272,6 +288,18 @@ class _StepProblem(StepProblem):
         sv.gradient_hessian(sv.x, self.h, self.inertia)
         dx, li = sv._solve()
         return Direction(dx, float(np.sum(sv.grad.numpy() * dx)), li)
+
+    def chord_direction(self, x: np.ndarray) -> Direction | None:
+        """The direction at x from the gradient at x and the factorisation of the last `direction` (None before the
+        first, or with the iterative `cg` solve, which keeps none)."""
+        sv = self.solver
+        if not sv.factored:
+            return None
+        sv.x.assign(x)
+        sv.gradient(sv.x, self.h, self.inertia)
+        g = sv.grad.numpy()
+        dx = sv.factoriser.solve(-g.ravel()).reshape(-1, 3)
+        return Direction(dx, float(np.sum(g * dx)), 0)
 
     def step_norm(self, dx: np.ndarray) -> float:
         """|dx|_inf / h [m/s]."""

@@ -37,9 +37,11 @@ class Launcher(ABC):
         """Take the step's constants (nothing by default)."""
 
     @abstractmethod
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         """Add the term at x (n,) vec3d [m]: mode 0 its energy, mode 1 its gradient and Hessian blocks. h is the
-        step's effective step h_eff [s]; inertia=False: static equilibrium (no inertia, no rates)."""
+        step's effective step h_eff [s]; inertia=False: static equilibrium (no inertia, no rates). hessian=False
+        (mode 1): the gradient alone is wanted, so a term may skip its Hessian blocks (the element terms do; the
+        point terms' diagonal blocks cost next to nothing and are added regardless: `values` is scratch then)."""
 
 
 #: The launcher of each term class (`LAUNCHERS.build(solver, terms)`: one per term).
@@ -54,7 +56,7 @@ def _scatter_element_blocks(solver: FullSpaceSolver) -> None:
 
 @LAUNCHERS.register(Inertia)
 class _Inertia(Launcher):
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s = self.solver
         wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
             x, s.x_hat, s.mass, 1.0 / h**2 if inertia else 0.0, wp.vec3d(0.0, 0.0, 0.0), s.diag, s.grad, s.values,
@@ -67,7 +69,7 @@ class _Gravity(Launcher):
         super().__init__(solver, term)
         self.gravity = wp.vec3d(*solver.model.gravity)
 
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s = self.solver
         wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
             x, s.x_hat, s.mass, 0.0, self.gravity, s.diag, s.grad, s.values, s.energy_buf, mode])
@@ -79,13 +81,15 @@ class _Elasticity(Launcher):
         super().__init__(solver, term)
         self.alpha_snh = 1.0 + 0.75 * solver.model.mu_snh / solver.model.lam_snh  # the SNH rest offset [-]
 
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s, m = self.solver, self.solver.model
         ins = [x, s.tets, s.Dm_inv, s.vol, m.mu_snh, m.lam_snh, self.alpha_snh]
         if mode == 0:
             wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.energy_buf])
         else:
             wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.grad])
+            if not hessian:
+                return
             s.elem_blocks.zero_()
             s.elements.launch(K.elastic_hessian_kernel, ins + [s.elem_blocks], {1: 1, 2: 1, 3: 1, 7: 16})
             _scatter_element_blocks(s)
@@ -105,7 +109,7 @@ class _Viscosity(Launcher):
         wp.launch(K.green_strain_kernel, s.model.tets.shape[0], device=s.device,
                   inputs=[s.x_bar, s.tets, s.Dm_inv, self.strain_bar])
 
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         if not inertia:
             return
         s, m = self.solver, self.solver.model
@@ -114,13 +118,15 @@ class _Viscosity(Launcher):
             wp.launch(K.viscous_energy_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.energy_buf])
         else:
             wp.launch(K.viscous_gradient_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.grad])
+            if not hessian:
+                return
             s.elements.launch(K.viscous_hessian_kernel, ins + [s.elem_blocks], {1: 1, 2: 1, 3: 1, 4: 1, 6: 16})
             _scatter_element_blocks(s)
 
 
 @LAUNCHERS.register(PenaltyContact, ContactDamping)
 class _Penalty(Launcher):
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s, m = self.solver, self.solver.model
         wp.launch(K.penalty_contact_kernel, m.points.size, device=s.device, inputs=[
             x, s.x_lag, s.x_bar, s.points, s.area, s.normal, m.plane_offset, self.term.ke(m), self.term.kd(m), h,
@@ -129,7 +135,7 @@ class _Penalty(Launcher):
 
 @LAUNCHERS.register(BarrierContact)
 class _Barrier(Launcher):
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s, m, c = self.solver, self.solver.model, self.solver.model.contact
         wp.launch(K.barrier_contact_kernel, m.points.size, device=s.device, inputs=[
             x, s.points, s.area, s.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance, s.diag, s.grad,
@@ -147,7 +153,7 @@ class _Friction(Launcher):
     def begin_step(self, step: StepData) -> None:
         self.fn.assign(np.ascontiguousarray(step.fn))
 
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool) -> None:
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s, m = self.solver, self.solver.model
         wp.launch(K.friction_kernel, m.points.size, device=s.device, inputs=[
             x, s.x_bar, s.points, s.area, self.fn, s.normal, m.friction, m.contact.friction_stiffness, h, s.diag,
