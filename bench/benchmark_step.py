@@ -4,7 +4,7 @@ the reduced (LiCROM, Newton) step beside it.
     python -m frictionbench.bench.benchmark_step --out out/bench_step.json
     python -m frictionbench.bench.benchmark_step --cases hard/E1e9 --steps 3 --configs superlu:1 pardiso:1
     python -m frictionbench.bench.benchmark_step --cases paper/cheese_p1_mu0.5 --configs pardiso:1
-    python -m frictionbench.bench.benchmark_step --cases quick-damped/p1_mu0.5 --configs pardiso:1 --truth 2 \
+    python -m frictionbench.bench.benchmark_step --cases quick/p1_mu0.5 --configs pardiso:1 --truth 2 \
         --reduced
 
 With `--truth K [K ...]`, each case also steps at its suite's truth-ladder settings at level K (`[truth]`: its
@@ -276,9 +276,10 @@ def _print_full(name: str, cfg: str, r: dict) -> None:
 
 def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, reduced: list[str] | None = None,
               reduced_steps: int = 40, rank: int = 24, cubature: int = 60, repeats: int = 3,
-              truth_levels: list[int] | None = None) -> list[dict]:
+              truth_levels: list[int] | None = None, chord: str = "suite") -> list[dict]:
     """One record per case x configuration (see the module doc), then per truth level (`truth_levels`: the
-    suite's truth settings at those levels, in the first configuration), then the reduced ones; speedup = first
+    suite's truth settings at those levels, in the first configuration; `chord`: the suite's chord test, `off`, or
+    `both`: off then on, one after the other), then the reduced ones; speedup = first
     configuration's step time / this one's, in this run (for a truth level: its wall_s_per_sim_s over the first
     configuration's, below 1 where the truth costs more per simulated second); x_end_diff_rel against the first
     configuration's end state (the same simulated time)."""
@@ -300,17 +301,19 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, red
             records.append(r)
             _print_full(name, cfg, r)
         linear, _, threads = configs[0].partition(":")
-        for level in truth_levels or ():
+        chords = {"suite": (None,), "off": (False,), "both": (False, True)}[chord]
+        for level, on in ((level, on) for level in truth_levels or () for on in chords):
             sc_t, params = truth_scenario(name, level)
+            params = params if on is None else params | {"chord": on}
             r = run_config(build_model(sc_t, load_mesh(sc_t.mesh)), state, linear, int(threads or 1),
                            steps * 2 ** level, params)
             x_end = r.pop("x_end")
             r |= {"case": name, "mesh": sc.mesh.key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
                   "from_step": k, "steps": steps * 2 ** level, "truth_level": level,
-                  "speedup": base_sim / r["wall_s_per_sim_s"],
+                  "chord": bool(params.get("chord")), "speedup": base_sim / r["wall_s_per_sim_s"],
                   "x_end_diff_rel": float(np.abs(x_end - base_x).max() / model.L)}
             records.append(r)
-            _print_full(name, f"truth:{level}:{configs[0]}", r)
+            _print_full(name, f"truth:{level}{':chord' if r['chord'] else ''}:{configs[0]}", r)
         if reduced:
             W, cub = reduced_setup(model, frames, rank, cubature)
             all_ms = all_x = None
@@ -349,17 +352,19 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3, help="runs of each reduced step, the fastest kept")
     p.add_argument("--truth", nargs="*", type=int, default=[], metavar="K",
                    help="also step at the suite's truth-ladder settings at these levels (dt / 2^K)")
+    p.add_argument("--chord", default="suite", choices=["suite", "off", "both"],
+                   help="the truth levels' chord test: the suite's [truth] chord, off, or both (off, then on)")
     p.add_argument("--out", default="out/bench_step.json")
     a = p.parse_args()
     if any(k < 0 or k > 12 for k in a.truth):
         p.error(f"--truth: levels between 0 and 12, got {a.truth}")
     records = benchmark(a.cases, a.configs, a.steps, a.settle, a.reduced, a.reduced_steps, a.r, a.cubature,
-                        a.repeats, a.truth)
+                        a.repeats, a.truth, a.chord)
     write_json_atomic(a.out, {"records": records, "provenance": provenance("cpu"),
                               "command": {"cases": a.cases, "configs": a.configs, "steps": a.steps,
                                           "settle": a.settle, "reduced": a.reduced,
                                           "reduced_steps": a.reduced_steps, "r": a.r, "cubature": a.cubature,
-                                          "repeats": a.repeats, "truth": a.truth}})
+                                          "repeats": a.repeats, "truth": a.truth, "chord": a.chord}})
 
 
 if __name__ == "__main__":
