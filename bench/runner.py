@@ -1,7 +1,6 @@
 """The matrix runner: every scenario of a suite with the full-space reference and every solver variant.
 
-Phases: (1) full-space references of every member (also the training data; with a truth, those of the training
-members, the others run as (5)'s), (2) reduced models trained per mesh
+Phases: (1) full-space references of every member (also the training data), (2) reduced models trained per mesh
 shape on the suite's training split (cached; on the training members' references), (3) with a truth, each member's
 truth ladder, the runs of (5) filling the slots its last levels leave idle, (4) the models of the variants whose
 `training` is "truth", on the training members' truths, (5) every variant on every member (and on the other mesh
@@ -352,19 +351,14 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     refs = {m.scenario.name: Task(m.scenario, reference, {}) for m in suite.scenarios}
     remesh_refs = [Task(m.scenario, reference, {}, mesh_variant(m, v.remesh))
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
-    # with a truth, the training members' references first (the training data), the others beside the ladders
-    training = {m.scenario.name for m in suite.train}
-    first = [t for name, t in refs.items() if name in training or not spec]
-    rest = [t for name, t in refs.items() if name not in training and spec] + remesh_refs
-    run_tasks(first + ([] if spec else rest), store, device, jobs, executor, "references")
+    run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
     truths = TruthStore(truth_store_root(truth_store), device) if spec and use_truth_store else None
     # the variants that need no truth are prepared (trained) first, so that their runs fill the slots the ladders'
     # last levels leave idle; those trained on truths, after the ladders
     early = [v for v in variants if v.training != "truth"]
     resolved = prepare_variants(suite, early, store, refs, out / "models", device)
     ladders = (run_ladders(suite, spec, store, device, jobs, executor, reference, truths,
-                           later=rest + variant_tasks(suite, resolved, early)) if spec else {})
-    run_tasks(rest if spec else [], store, device, jobs, executor, "references")
+                           later=variant_tasks(suite, resolved, early)) if spec else {})
     late = [v for v in variants if v.training == "truth"]
     resolved = list(resolved) + list(prepare_variants(suite, late, store, refs, out / "models", device, ladders))
     run_tasks(variant_tasks(suite, resolved, variants), store, device, jobs, executor, "solver variants")

@@ -3,6 +3,10 @@ working tree first and compare those.
 
     python -m frictionbench.bench.unchanged --base 1ecc70a --suite quick --out out/unchanged  # runs both, compares
     python -m frictionbench.bench.unchanged OLD_DIR NEW_DIR                                   # two results folders
+    python -m frictionbench.bench.unchanged --base 239aabc --suite quick:quick-undamped       # a renamed suite
+
+A suite renamed between the two (`OLD:NEW`) is compared member by member: the old rows' suite and scenario names
+are renamed to the new ones first, and both sides are judged by the new name's gates.
 
 Rows are matched by their identity columns (suite, scenario, split, mesh, train_mesh, solver, variant). Every
 other column is compared except timing and provenance (`IGNORED_COLUMNS`, `*_version`): numbers to a relative
@@ -122,11 +126,17 @@ def compare_verdicts(old: pd.DataFrame, new: pd.DataFrame, suite: str, gates: li
             for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
 
 
-def compare_folders(old_dir: Path, new_dir: Path, exact_solvers: Sequence[str], gates_file: str | None
-                    ) -> tuple[list[Difference], list[str], int]:
-    """(differences, notes, rows compared) between two results folders of the same suite."""
+def compare_folders(old_dir: Path, new_dir: Path, exact_solvers: Sequence[str], gates_file: str | None,
+                    renamed: tuple[str, str] | None = None) -> tuple[list[Difference], list[str], int]:
+    """(differences, notes, rows compared) between two results folders of the same suite (`renamed`: (old name,
+    new name) of a suite renamed between them, the old rows renamed first)."""
     old, new = (_masked(pd.read_csv(d / "results.csv"), (old_dir, new_dir)) for d in (old_dir, new_dir))
     suites = {load_run_info(d)["suite"] for d in (old_dir, new_dir)}
+    if renamed is not None:
+        was, now = renamed
+        old = old.assign(suite=old["suite"].replace(was, now),
+                         scenario=old["scenario"].str.replace(f"{was}/", f"{now}/", n=1, regex=False))
+        suites = {now if name == was else name for name in suites}
     if len(suites) != 1:
         raise ValueError(f"the folders hold different suites: {sorted(suites)}")
     differences, notes = compare_results(old, new, exact_solvers)
@@ -160,9 +170,9 @@ def run_suite_at(source: Path, suite: str, out: Path, jobs: int) -> Path:
     return out
 
 
-def run_base_and_tree(base: str, suite: str, out: Path, jobs: int) -> tuple[Path, Path]:
-    """Run the suite on commit `base` (a temporary git worktree) and on this working tree, into out/base and
-    out/tree; returns both folders."""
+def run_base_and_tree(base: str, suite: str, out: Path, jobs: int, renamed: str = "") -> tuple[Path, Path]:
+    """Run the suite on commit `base` (a temporary git worktree) and on this working tree (there named `renamed`
+    where given), into out/base and out/tree; returns both folders."""
     root = Path(__file__).resolve().parents[1]
     with tempfile.TemporaryDirectory(prefix="unchanged-") as tmp:
         checkout = Path(tmp) / "base"
@@ -171,14 +181,14 @@ def run_base_and_tree(base: str, suite: str, out: Path, jobs: int) -> tuple[Path
             run_suite_at(checkout, suite, out / "base", jobs)
         finally:
             subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(checkout)], check=False)
-    return out / "base", run_suite_at(root, suite, out / "tree", jobs)
+    return out / "base", run_suite_at(root, renamed or suite, out / "tree", jobs)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m frictionbench.bench.unchanged", description=__doc__.split("\n\n")[0])
     p.add_argument("folders", nargs="*", type=Path, help="OLD_DIR NEW_DIR: two results folders to compare")
     p.add_argument("--base", help="a git revision: run the suite on it and on the working tree, then compare")
-    p.add_argument("--suite", default="quick")
+    p.add_argument("--suite", default="quick", help="the suite, or OLD:NEW for one renamed since --base")
     p.add_argument("--out", type=Path, help="with --base: where the two runs go (default: a folder under out/)")
     p.add_argument("--jobs", type=int, default=1)
     p.add_argument("--exact", nargs="+", default=["full"], help="solvers compared to 1e-9 (default: full)")
@@ -186,11 +196,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     if bool(args.base) == (len(args.folders) == 2) or len(args.folders) not in (0, 2):
         p.error("give either --base REV or two results folders")
+    was, _, now = args.suite.partition(":")
+    renamed = (was, now) if now else None
     if args.base:
-        old_dir, new_dir = run_base_and_tree(args.base, args.suite, args.out or Path("out") / "unchanged", args.jobs)
+        old_dir, new_dir = run_base_and_tree(args.base, was, args.out or Path("out") / "unchanged", args.jobs, now)
     else:
         old_dir, new_dir = args.folders
-    differences, notes, rows = compare_folders(old_dir, new_dir, args.exact, args.gates)
+    differences, notes, rows = compare_folders(old_dir, new_dir, args.exact, args.gates, renamed)
     for note in notes:
         print("note:", note)
     for difference in differences:

@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from frictionbench.analysis.truth import (AT_MOST, MIN_ORDER, MORE_ACCURATE, assess_ladder, certified_horizon, decidable,
-                                          full_space_cost, ladder_continues, pareto_front, richardson,
+from frictionbench.analysis.truth import (AT_MOST, MIN_ORDER, MORE_ACCURATE, assess_ladder, certified_horizon,
+                                          decidable, full_space_cost, ladder_continues, pareto_front, richardson,
                                           speedup_equal_accuracy, wall_s_per_sim_s, with_frontier)
 from frictionbench.solvers.integrators import BDF2, BackwardEuler
 

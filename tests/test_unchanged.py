@@ -124,3 +124,18 @@ def test_a_checkout_runs_its_own_command_line(tmp_path, monkeypatch, layout, cli
     unchanged.run_suite_at(tmp_path, "quick", tmp_path / "out", 2)
     ((cmd, cwd, env),) = ran
     assert cmd[1:4] == ["-m", cli, "run"] and cwd == tmp_path and env["PYTHONPATH"] == str(tmp_path)
+
+
+def test_a_renamed_suite_is_compared_member_by_member(tmp_path, capsys) -> None:
+    """`--suite OLD:NEW`: the old rows take the new suite and scenario names, then compare as one suite's."""
+    old = write_folder(tmp_path / "old", table())
+    renamed = table().assign(suite="quick-undamped", scenario="quick-undamped/a")
+    new = write_folder(tmp_path / "new", renamed)
+    (new / "run.json").write_text(json.dumps({"suite": "quick-undamped"}))
+    with pytest.raises(ValueError, match="different suites"):
+        main([str(old), str(new)])
+    assert main([str(old), str(new), "--suite", "quick:quick-undamped"]) == 0
+    assert "compared 3 rows" in capsys.readouterr().out
+    moved = write_folder(tmp_path / "moved", renamed.assign(pos_rmse_rel=[0.0, 0.031, None]))
+    (moved / "run.json").write_text(json.dumps({"suite": "quick-undamped"}))
+    assert main([str(old), str(moved), "--suite", "quick:quick-undamped"]) == 1
