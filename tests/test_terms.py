@@ -120,7 +120,7 @@ class Push(T.BodyTerm):
 class PushLaunch(FT.Launcher):
     """Push on the full-space solver: the gravity kernel with f."""
 
-    def launch(self, x, h, mode, inertia) -> None:
+    def launch(self, x, h, mode, inertia, hessian=True) -> None:
         import warp as wp
 
         from frictionbench.solvers import kernels as K
@@ -204,7 +204,7 @@ class Drag(T.BodyTerm):
 class DragLaunch(FT.Launcher):
     """Drag on the full-space solver: the inertia-gravity kernel about x_bar with coefficient c / h and f."""
 
-    def launch(self, x, h, mode, inertia) -> None:
+    def launch(self, x, h, mode, inertia, hessian=True) -> None:
         import warp as wp
 
         from frictionbench.solvers import kernels as K
