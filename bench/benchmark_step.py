@@ -274,12 +274,26 @@ def _print_full(name: str, cfg: str, r: dict) -> None:
           flush=True)
 
 
+#: The truth levels' Newton variants of `--chord`: Newton's method, the chord convergence test
+#: (`NewtonSettings.chord`), and modified Newton with it (`NewtonSettings.chord_contraction`, at MODIFIED_CONTRACTION).
+MODIFIED_CONTRACTION = 0.5
+CHORD_MODES = {"off": {"chord": False, "chord_contraction": 0.0}, "test": {"chord": True, "chord_contraction": 0.0},
+               "modified": {"chord": True, "chord_contraction": MODIFIED_CONTRACTION}}
+
+
+def chord_mode(params: dict) -> str:
+    """The `CHORD_MODES` name of the full-space parameters `params` (`modified` at any contraction)."""
+    if not params.get("chord"):
+        return "off"
+    return "modified" if params.get("chord_contraction") else "test"
+
+
 def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, reduced: list[str] | None = None,
               reduced_steps: int = 40, rank: int = 24, cubature: int = 60, repeats: int = 3,
               truth_levels: list[int] | None = None, chord: str = "suite") -> list[dict]:
     """One record per case x configuration (see the module doc), then per truth level (`truth_levels`: the
-    suite's truth settings at those levels, in the first configuration; `chord`: the suite's chord test, `off`, or
-    `both`: off then on, one after the other), then the reduced ones; speedup = first
+    suite's truth settings at those levels, in the first configuration; `chord`: the suite's Newton (`suite`), or
+    one of CHORD_MODES, or `all` of them one after the other), then the reduced ones; speedup = first
     configuration's step time / this one's, in this run (for a truth level: its wall_s_per_sim_s over the first
     configuration's, below 1 where the truth costs more per simulated second); x_end_diff_rel against the first
     configuration's end state (the same simulated time)."""
@@ -301,19 +315,19 @@ def benchmark(cases: list[str], configs: list[str], steps: int, settle: int, red
             records.append(r)
             _print_full(name, cfg, r)
         linear, _, threads = configs[0].partition(":")
-        chords = {"suite": (None,), "off": (False,), "both": (False, True)}[chord]
-        for level, on in ((level, on) for level in truth_levels or () for on in chords):
+        modes = {"suite": (None,), "all": tuple(CHORD_MODES)}.get(chord, (chord,))
+        for level, mode in ((level, mode) for level in truth_levels or () for mode in modes):
             sc_t, params = truth_scenario(name, level)
-            params = params if on is None else params | {"chord": on}
+            params = params if mode is None else params | CHORD_MODES[mode]
             r = run_config(build_model(sc_t, load_mesh(sc_t.mesh)), state, linear, int(threads or 1),
                            steps * 2 ** level, params)
             x_end = r.pop("x_end")
             r |= {"case": name, "mesh": sc.mesh.key, "n_vertices": model.n, "n_tets": int(model.tets.shape[0]),
                   "from_step": k, "steps": steps * 2 ** level, "truth_level": level,
-                  "chord": bool(params.get("chord")), "speedup": base_sim / r["wall_s_per_sim_s"],
+                  "chord": chord_mode(params), "speedup": base_sim / r["wall_s_per_sim_s"],
                   "x_end_diff_rel": float(np.abs(x_end - base_x).max() / model.L)}
             records.append(r)
-            _print_full(name, f"truth:{level}{':chord' if r['chord'] else ''}:{configs[0]}", r)
+            _print_full(name, f"truth:{level}:{r['chord']}:{configs[0]}", r)
         if reduced:
             W, cub = reduced_setup(model, frames, rank, cubature)
             all_ms = all_x = None
@@ -352,8 +366,9 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3, help="runs of each reduced step, the fastest kept")
     p.add_argument("--truth", nargs="*", type=int, default=[], metavar="K",
                    help="also step at the suite's truth-ladder settings at these levels (dt / 2^K)")
-    p.add_argument("--chord", default="suite", choices=["suite", "off", "both"],
-                   help="the truth levels' chord test: the suite's [truth] chord, off, or both (off, then on)")
+    p.add_argument("--chord", default="suite", choices=["suite", *CHORD_MODES, "all"],
+                   help="the truth levels' Newton: the suite's ([truth] chord, chord_contraction), Newton's (off), "
+                        "the chord convergence test (test), modified Newton (modified), or all three in turn")
     p.add_argument("--out", default="out/bench_step.json")
     a = p.parse_args()
     if any(k < 0 or k > 12 for k in a.truth):

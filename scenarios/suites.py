@@ -45,6 +45,9 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     chord = true                    # optional (default false): the ladder runs test Newton's convergence with the
                                     # last factorisation first (`NewtonSettings.chord`): the same tolerance test,
                                     # no Hessian or factorisation on the iteration that ends a solve
+    chord_contraction = 0.5         # optional (default 0, off; in [0, 0.9], needs chord): modified Newton, a chord
+                                    # step shorter than this times the last step is taken without refactorising
+                                    # (`NewtonSettings.chord_contraction`); the same tolerance test ends a solve
 
     [[extra]]                       # a member outside the product, e.g. a held-out plane and friction coefficient
     labels = { plane = "p4", mu = "mu0.35" }
@@ -91,6 +94,9 @@ TRUTH_KINDS = ("step", "tolerance")
 TRUTH_START_TOL_RANGE = (1e-12, 0.5)
 #: Bounds of a truth ladder's Newton tolerance [fraction of L per second].
 TRUTH_NEWTON_TOL_RANGE = (1e-12, 1e-2)
+#: Bounds of a truth ladder's chord contraction (a ratio of step norms; 0 off, below 1 so that modified Newton's steps
+#: shrink).
+TRUTH_CHORD_CONTRACTION_RANGE = (0.0, 0.9)
 #: A tolerance ladder divides time.tol by this from level to level: a local error of order p + 1 = 3 (BDF2) then
 #: shrinks the steps by 8^(1/3) = 2 and the global error by 4 per level, as a halving of dt does.
 TOLERANCE_FACTOR = 8.0
@@ -117,7 +123,8 @@ class TruthSpec:
     truth); `newton_tol`: its runs' Newton tolerance [fraction of L per second] (None: the solver's default, 1e-5).
     A step's test bounds its velocity error by newton_tol L, so a run of duration T drifts by at most
     newton_tol T L: a tolerance with newton_tol T well below `tol` cannot move the truth by more than that.
-    `chord`: its runs test Newton's convergence with the last factorisation first (`NewtonSettings.chord`)."""
+    `chord`: its runs test Newton's convergence with the last factorisation first (`NewtonSettings.chord`);
+    `chord_contraction`: with it, modified Newton (`NewtonSettings.chord_contraction`; 0, off)."""
 
     tol: float = 0.005
     depth: int = 4
@@ -128,12 +135,14 @@ class TruthSpec:
     contact_lag: str = "start"
     newton_tol: float | None = None
     chord: bool = False
+    chord_contraction: float = 0.0
 
     @property
     def solver_params(self) -> dict:
         """The full-space solver's parameters of the ladder's runs: its Newton tolerance where `newton_tol` sets
-        one, and the chord test where `chord` is on."""
-        return ({} if self.newton_tol is None else {"tol": self.newton_tol}) | ({"chord": True} if self.chord else {})
+        one, the chord test where `chord` is on, and modified Newton where `chord_contraction` sets it."""
+        return ({} if self.newton_tol is None else {"tol": self.newton_tol}) | ({"chord": True} if self.chord else {}) \
+            | ({"chord_contraction": self.chord_contraction} if self.chord_contraction else {})
 
     def level_tol(self, k: int) -> float | None:
         """time.tol [fraction of L] of level k of a tolerance ladder; None for a step ladder."""
@@ -146,7 +155,8 @@ class TruthSpec:
         d = ({"tol": self.tol, "depth": self.depth, "integrator": self.integrator, "ladders": list(self.ladders),
              "kind": self.kind, "contact_lag": self.contact_lag}
              | ({} if self.start_tol is None else {"start_tol": self.start_tol})
-             | ({} if self.newton_tol is None else {"newton_tol": self.newton_tol}) | {"chord": self.chord})
+             | ({} if self.newton_tol is None else {"newton_tol": self.newton_tol}) | {"chord": self.chord}
+             | ({"chord_contraction": self.chord_contraction} if self.chord_contraction else {}))
         d |= {k: v for k, v in (("tol", tol), ("depth", depth), ("integrator", integrator)) if v is not None}
         return truth_spec(d, where, sep)
 
@@ -258,7 +268,7 @@ def suite_from_dict(d: Mapping[str, Any], source: str = "<dict>",
 def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     """A validated `[truth]` table; errors name the field `<where><sep><key>` (`truth.depth`)."""
     t = _table(raw, where, ("tol", "depth", "integrator", "ladders", "kind", "start_tol", "contact_lag", "newton_tol",
-                            "chord"))
+                            "chord", "chord_contraction"))
     d = TruthSpec()
     tol = _number_in(t.get("tol", d.tol), TRUTH_TOL_RANGE, f"{where}{sep}tol", "a fraction of L")
     depth = t.get("depth", d.depth)
@@ -294,10 +304,14 @@ def truth_spec(raw: object, where: str = "truth", sep: str = ".") -> TruthSpec:
     chord = t.get("chord", d.chord)
     if not isinstance(chord, bool):
         raise ScenarioError(f"{where}{sep}chord", chord, "expected true or false")
+    contraction = _number_in(t.get("chord_contraction", d.chord_contraction), TRUTH_CHORD_CONTRACTION_RANGE,
+                             f"{where}{sep}chord_contraction", "a ratio of step norms")
+    if contraction and not chord:
+        raise ScenarioError(f"{where}{sep}chord_contraction", contraction, f"needs {where}{sep}chord = true")
     return TruthSpec(tol=tol, depth=depth, integrator=integrator,
                      ladders=tuple(dict.fromkeys(x for x in ladders if x != integrator)), kind=kind,
                      start_tol=start_tol, contact_lag=lag, newton_tol=newton_tol,
-                     chord=chord)
+                     chord=chord, chord_contraction=contraction)
 
 
 def _number_in(value: object, bounds: tuple[float, float], field: str, unit: str) -> float:

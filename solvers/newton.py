@@ -106,7 +106,8 @@ def feasible_step(phi: np.ndarray, rate: np.ndarray) -> float:
 
 
 def minimise(problem: NewtonProblem, y: np.ndarray, tol_v: float, max_iter: int,
-             search: LineSearch = LineSearch(), chord: int | None = None) -> NewtonResult:
+             search: LineSearch = LineSearch(), chord: int | None = None, contraction: float = 0.0,
+             residual: float = np.inf) -> NewtonResult:
     """Newton's method from y: stop when the step norm is below tol_v [m/s] (taking that last step, capped), or
     when a line search finds no decrease down to alpha = 2^-max_halvings (a stall: y is kept, not converged), or
     after max_iter iterations (not converged).
@@ -115,17 +116,30 @@ def minimise(problem: NewtonProblem, y: np.ndarray, tol_v: float, max_iter: int,
     (`NewtonProblem.chord_direction`: the last factorisation reused, a gradient and a back-substitution); where that
     step is below tol_v it is the last step, else the iteration takes the Newton direction as without it. The
     iteration that ends a converged solve then costs no Hessian and no factorisation; the end point differs from
-    Newton's by the difference of two steps each below tol_v."""
+    Newton's by the difference of two steps each below tol_v.
+
+    `contraction` (with `chord`; 0: off) makes the chord iteration modified Newton's: a chord step of norm below
+    `contraction` times the last step's (`residual` [m/s] at the start: the norm of the last step before this
+    call, a previous solve's of the same step) whose full step, capped, passes the Armijo test is taken as the
+    iteration, without a Hessian or a factorisation; the factorisation is renewed (a Newton direction) where a
+    chord step contracts less or fails the test. The convergence test, and so the tolerance the end point meets,
+    is the same."""
     E = problem.energy(y)
     halvings = lin_iters = stalls = 0
-    residual, it = np.inf, 0
+    it = 0
     for it in range(1, max_iter + 1):
         if chord is not None and it >= chord and (c := problem.chord_direction(y)) is not None:
             lin_iters += c.linear_iters
-            residual = problem.step_norm(c.dy)
-            if residual < tol_v:
+            step = problem.step_norm(c.dy)
+            if step < tol_v:
                 y = y + problem.max_step(y, c.dy) * c.dy
-                return NewtonResult(y, it, residual, halvings, lin_iters, stalls, True)
+                return NewtonResult(y, it, step, halvings, lin_iters, stalls, True)
+            if step < contraction * residual:
+                alpha = problem.max_step(y, c.dy)
+                E_new = problem.energy(y + alpha * c.dy)
+                if _sufficient(E_new, E, alpha, c.g_dot, search):
+                    y, E, residual = y + alpha * c.dy, E_new, step
+                    continue
         d = problem.direction(y)
         lin_iters += d.linear_iters
         residual = problem.step_norm(d.dy)
@@ -135,7 +149,7 @@ def minimise(problem: NewtonProblem, y: np.ndarray, tol_v: float, max_iter: int,
         alpha = problem.max_step(y, d.dy)
         while True:
             E_new = problem.energy(y + alpha * d.dy)
-            if np.isfinite(E_new) and E_new <= E + search.armijo * alpha * d.g_dot + ARMIJO_SLACK * abs(E):
+            if _sufficient(E_new, E, alpha, d.g_dot, search):
                 break
             alpha *= 0.5
             halvings += 1
@@ -147,3 +161,9 @@ def minimise(problem: NewtonProblem, y: np.ndarray, tol_v: float, max_iter: int,
         y = y + alpha * d.dy
         E = E_new
     return NewtonResult(y, it, residual, halvings, lin_iters, stalls, False)
+
+
+def _sufficient(E_new: float, E: float, alpha: float, g_dot: float, search: LineSearch) -> bool:
+    """The Armijo test of a trial step alpha along a direction with directional derivative g_dot [J]: E_new [J]
+    finite and at most E + armijo alpha g_dot (with the round-off allowance ARMIJO_SLACK |E|)."""
+    return bool(np.isfinite(E_new) and E_new <= E + search.armijo * alpha * g_dot + ARMIJO_SLACK * abs(E))

@@ -51,7 +51,9 @@ def test_the_truth_table_has_defaults_and_validated_fields():
     ({"tol": "small"}, "truth.tol", "small"), ({"integrator": "rk4"}, "truth.integrator", "rk4"),
     ({"ladders": ["euler"]}, "truth.ladders[0]", "euler"), ({"depht": 3}, "depht", "3"),
     ({"newton_tol": 0.0}, "truth.newton_tol", "0.0"), ({"newton_tol": 0.1}, "truth.newton_tol", "0.1"),
-    ({"newton_tol": True}, "truth.newton_tol", "True"), ({"chord": "yes"}, "truth.chord", "yes")])
+    ({"newton_tol": True}, "truth.newton_tol", "True"), ({"chord": "yes"}, "truth.chord", "yes"),
+    ({"chord_contraction": 0.5}, "truth.chord_contraction", "0.5"),
+    ({"chord": True, "chord_contraction": 1.0}, "truth.chord_contraction", "1.0")])
 def test_a_bad_truth_table_is_refused_naming_the_field_and_value(truth, field, value):
     with pytest.raises(ScenarioError) as err:
         suite_from_dict(_suite_dict(**truth))
@@ -67,12 +69,15 @@ def test_a_truth_newton_tolerance_reaches_the_ladders_runs():
     assert Ladder(plain.scenarios[0], plain.truth.integrator, spec=plain.truth).task(2).params == {}
     chord = suite_from_dict(_suite_dict(newton_tol=1e-4, chord=True)).truth
     assert chord.solver_params == {"tol": 1e-4, "chord": True} and chord.with_(depth=3).chord
+    modified = suite_from_dict(_suite_dict(chord=True, chord_contraction=0.5)).truth
+    assert modified.solver_params == {"chord": True, "chord_contraction": 0.5}
+    assert modified.with_(depth=3).chord_contraction == 0.5
 
 
-def test_the_chord_test_ends_a_solve_without_a_factorisation_and_meets_the_same_tolerance():
+def test_the_chord_test_and_modified_newton_factorise_less_and_meet_the_same_tolerance():
     """On a damped slide under the fixed-point lag (the default suite's truth settings, a few steps in contact),
-    the chord test leaves the iterations per step unchanged but factorises less, and the end state lies within
-    what the Newton tolerance allows of the plain run's."""
+    the chord test factorises less than Newton's method, modified Newton (chord_contraction) less again, and
+    either's end state lies within what the Newton tolerance allows of the plain run's."""
     from frictionbench.bench.benchmark_step import mid_contact_state, truth_scenario
     from frictionbench.scenarios.meshes import load_mesh
     from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
@@ -82,8 +87,10 @@ def test_the_chord_test_ends_a_solve_without_a_factorisation_and_meets_the_same_
     model = build_model(sc, load_mesh(sc.mesh))
     state, _, _ = mid_contact_state(model, 1)
     ends, factorisations = {}, {}
-    for chord in (False, True):
-        solver = FullSpaceSolver(model, settings=NewtonSettings(linear="superlu", **(params | {"chord": chord})))
+    modes = {"off": {"chord": False, "chord_contraction": 0.0}, "test": {"chord": True, "chord_contraction": 0.0},
+             "modified": {"chord": True, "chord_contraction": 0.5}}
+    for mode, settings in modes.items():
+        solver = FullSpaceSolver(model, settings=NewtonSettings(linear="superlu", **(params | settings)))
         calls = []
         factorize = solver.factoriser.factorize
         solver.factoriser.factorize = lambda values: (calls.append(1), factorize(values))[1]
@@ -92,10 +99,11 @@ def test_the_chord_test_ends_a_solve_without_a_factorisation_and_meets_the_same_
             out = State(s.x, s.v, s.t)
             assert solver.step(s, out, sc.time.dt).converged
             s = out
-        ends[chord], factorisations[chord] = s.x, len(calls)
-    assert factorisations[True] < factorisations[False]
-    drift = np.abs(ends[True] - ends[False]).max() / model.L
-    assert 0.0 < drift < 4 * params["tol"] * sc.time.dt  # four steps' velocity errors of at most tol L each
+        ends[mode], factorisations[mode] = s.x, len(calls)
+    assert factorisations["modified"] < factorisations["test"] < factorisations["off"]
+    for mode in ("test", "modified"):
+        drift = np.abs(ends[mode] - ends["off"]).max() / model.L
+        assert 0.0 < drift < 4 * params["tol"] * sc.time.dt  # four steps' velocity errors of at most tol L each
 
 
 def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):
@@ -332,7 +340,8 @@ def test_quick_is_quick_undamped_with_paper_dampeds_damping_and_truth_lag():
         undamped = replace(b.scenario, name=a.scenario.name, description=a.scenario.description, tags=a.scenario.tags,
                            effects=a.scenario.effects, material=a.scenario.material, contact=a.scenario.contact)
         assert undamped == a.scenario  # only the damping differs: mesh, plane, drop and time are quick's
-    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point", newton_tol=1e-4, chord=True)
+    assert twin.truth == replace(quick.truth, depth=5, contact_lag="fixed-point", newton_tol=1e-4, chord=True,
+                                     chord_contraction=0.5)
 
 
 def test_a_bdf2_truth_with_a_backward_euler_frontier_ladder(tmp_path: Path):

@@ -13,18 +13,20 @@ class FullSpace(Solver):
     """Implicit time stepping on every vertex (`solvers.full.solver.FullSpaceSolver`; every integrator of
     `solvers.integrators`, the scenario's `time.integrator`): Newton tolerance `tol` [1/s, relative to L], `linear`
     solve (`auto`, `direct`, `pardiso`, `superlu`, `cg`; `solvers.linalg`) and `max_iter` Newton iterations per
-    attempt; `chord`, Newton's convergence test with the last factorisation first (`NewtonSettings.chord`)."""
+    attempt; `chord`, Newton's convergence test with the last factorisation first (`NewtonSettings.chord`), and
+    `chord_contraction`, with it modified Newton (`NewtonSettings.chord_contraction`)."""
 
     name = "full"
     integrators = tuple(INTEGRATORS)
     parameters = {"tol": NewtonSettings.tol, "linear": NewtonSettings.linear, "max_iter": NewtonSettings.max_iter,
-                  "chord": NewtonSettings.chord}
+                  "chord": NewtonSettings.chord, "chord_contraction": NewtonSettings.chord_contraction}
 
     def setup(self, model: Model) -> None:
         """The solver's kernels and buffers on `model`."""
         p = self.params
         self.solver = FullSpaceSolver(model, device=self.device, settings=NewtonSettings(
-            tol=p["tol"], linear=p["linear"], max_iter=p["max_iter"], chord=p["chord"]))
+            tol=p["tol"], linear=p["linear"], max_iter=p["max_iter"], chord=p["chord"],
+            chord_contraction=p["chord_contraction"]))
 
     def step(self, state_in: State, state_out: State, dt: float) -> StepStats:
         """One Newton-solved step of the scenario's integrator."""

@@ -46,6 +46,13 @@ class NewtonSettings:
     gradient and a back-substitution, `solvers.newton.minimise`): the iteration that ends a solve, a fixed point's
     re-lag above all, then costs no Hessian and no factorisation. Off by default (the references' settings);
     the truth ladders' `[truth] chord` turns it on.
+
+    chord_contraction (with chord; 0: off): modified Newton. A chord step of norm below chord_contraction times the
+    last step's, the step's previous solve's included (a fixed point's re-lag starts from it), that passes the
+    Armijo test is taken as the iteration, and the factorisation is kept; one that contracts less is replaced by a
+    Newton iteration, which refactorises. A step's first iteration takes the chord step of the previous step's
+    factorisation (at the same step size) wherever it passes the Armijo test, the next one judging its
+    contraction. The truth ladders' `[truth] chord_contraction` sets it.
     """
 
     tol: float = 1e-5
@@ -55,6 +62,7 @@ class NewtonSettings:
     armijo: float = 1e-4
     max_halvings: int = 40
     chord: bool = False
+    chord_contraction: float = 0.0
 
 
 class BlockPattern:
@@ -114,7 +122,9 @@ class FullSpaceSolver:
             self.factoriser = make_factoriser(linear, self.pattern.offsets, self.pattern.cols, model.n)
             linear = self.factoriser.name
         self.linear = linear
-        self.factored = False  # whether the factoriser holds a factorisation (`_StepProblem.chord_direction`)
+        # the (h [s], inertia) of the problem whose Hessian the factoriser holds, None before the first
+        # (`_StepProblem.chord_direction`)
+        self.factored: tuple[float, bool] | None = None
         self.elements = ElementRanges(model.tets.shape[0], d, thread_budget())
         self.info = {"linear_solver": linear, "assembly_threads": self.elements.threads}
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
@@ -177,11 +187,12 @@ class FullSpaceSolver:
         self._launch_terms(x, h, 1, inertia, hessian=False)
 
     # ----- linear solve and line search ---------------------------------------------------------------
-    def _solve(self) -> tuple[np.ndarray, int]:
-        """Newton direction dx = -H^-1 grad, (n, 3), and the linear iteration count (0 for direct)."""
+    def _solve(self, problem: tuple[float, bool]) -> tuple[np.ndarray, int]:
+        """Newton direction dx = -H^-1 grad, (n, 3), and the linear iteration count (0 for direct); `problem`: the
+        (h [s], inertia) of the Hessian, which a direct solve's factorisation is kept for (`factored`)."""
         if self.linear != "cg":
             self.factoriser.factorize(self.values.numpy())
-            self.factored = True
+            self.factored = problem
             return self.factoriser.solve(-self.grad.numpy().ravel()).reshape(-1, 3), 0
         wp.launch(_negate_kernel, self.model.n, device=self.device, inputs=[self.grad, self.rhs])
         self.dx.zero_()
@@ -230,6 +241,7 @@ class _LaggedStep:
     x_start: np.ndarray
     dt: float
     x_gate: np.ndarray | None = None
+    residual: float = np.inf  # the norm of the step's last Newton step so far [m/s] (`minimise(residual=...)`)
 
     def relag(self, x_lag: np.ndarray, v_lag: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         """Begin the step with its lagged quantities at positions x_lag and velocities v_lag (n, 3)
@@ -259,9 +271,13 @@ class _LaggedStep:
             if problem.capping:
                 reach = (lag.y_bar - self.x_start) + lag.h_eff * lag.v_bar  # x_hat - x^n (h v^n for backward Euler)
                 x0 = self.x_start.copy() + reach * problem.max_step(self.x_start, reach)
-        chord = (2 if first else 1) if s.chord else None  # a step's first solve starts far from the last factor's
-        return minimise(problem, x0, s.tol * sv.model.L, max_iter or s.max_iter,
-                        LineSearch(s.armijo, s.max_halvings), chord)
+        # a step's first solve starts far from the last factorisation's point (the previous step's): the chord test
+        # there only from its second iteration, but modified Newton takes the previous step's factorisation as well
+        chord = (2 if first and not s.chord_contraction else 1) if s.chord else None
+        res = minimise(problem, x0, s.tol * sv.model.L, max_iter or s.max_iter, LineSearch(s.armijo, s.max_halvings),
+                       chord, s.chord_contraction, self.residual)
+        self.residual = res.residual
+        return res
 
     def velocity(self, x: np.ndarray) -> np.ndarray:
         """The end-of-step velocities of positions x (n, 3) [m/s]."""
@@ -286,14 +302,14 @@ class _StepProblem(StepProblem):
         sv = self.solver
         sv.x.assign(x)
         sv.gradient_hessian(sv.x, self.h, self.inertia)
-        dx, li = sv._solve()
+        dx, li = sv._solve((self.h, self.inertia))
         return Direction(dx, float(np.sum(sv.grad.numpy() * dx)), li)
 
     def chord_direction(self, x: np.ndarray) -> Direction | None:
         """The direction at x from the gradient at x and the factorisation of the last `direction` (None before the
-        first, or with the iterative `cg` solve, which keeps none)."""
+        first, with the iterative `cg` solve, which keeps none, or where the last was another step size's)."""
         sv = self.solver
-        if not sv.factored:
+        if sv.factored != (self.h, self.inertia):
             return None
         sv.x.assign(x)
         sv.gradient(sv.x, self.h, self.inertia)
