@@ -241,7 +241,7 @@ class _LaggedStep:
     x_start: np.ndarray
     dt: float
     x_gate: np.ndarray | None = None
-    residual: float = np.inf  # the norm of the step's last Newton step so far [m/s] (`minimise(residual=...)`)
+    residual: float = np.inf  # the norm of the step's last step so far, Newton or chord [m/s] (`minimise(residual=...)`)
 
     def relag(self, x_lag: np.ndarray, v_lag: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         """Begin the step with its lagged quantities at positions x_lag and velocities v_lag (n, 3)
