@@ -1,5 +1,5 @@
 """Reduced curves on the frontier: a solver variant run on its own step ladder (dt / 2^k, k = 0, 1, ...; rows with a
-`curve` and its `curve_level`, `bench.variants.step_ladder`) draws its own err_truth-versus-cost curve beside the
+`curve` and its `curve_level`, `bench.matrix.step_ladder`) draws its own err_truth-versus-cost curve beside the
 full-space ladder, and where the curve stops improving, `curve_floor` says what holds it up.
 
 The rule, per scenario and curve, from its finished rows (status ok, a finite err_truth), on its finest one:

@@ -110,7 +110,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     reference runs by scenario name; `runs` gives the stored runs and the variants of each member (the harness's
     `bench.runner.StoreRuns`). Every row of a scenario whose reference ran gets the scene's time scales on the
     reference's mesh with the patch of its last frame and its own step's resolution of them (`analysis.timescales`:
-    computed once per mesh, material and step). A variant on a step ladder of its own (`bench.variants.step_ladder`)
+    computed once per mesh, material and step). A variant on a step ladder of its own (`bench.matrix.step_ladder`)
     gives its rows its curve's columns (`curve_cells`), and the finest finished row of each curve its floor
     (`analysis.curves.with_curve_floors`)."""
     rows = []
@@ -243,7 +243,7 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
 
 
 def curve_cells(variant: object) -> dict:
-    """The curve columns of a variant's rows (`bench.runner.Variant.curve`, set by `bench.variants.step_ladder`):
+    """The curve columns of a variant's rows (`bench.runner.Variant.curve`, set by `bench.matrix.step_ladder`):
     `curve`, `curve_level` and, where it has one, `curve_twin`; none for a variant on no curve."""
     curve = getattr(variant, "curve", "")
     if not curve:

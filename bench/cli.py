@@ -6,6 +6,7 @@ import argparse
 import signal
 import sys
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 from frictionbench.bench.executors import usable_cores
@@ -61,7 +62,9 @@ def parse_mesh(ref: str | None) -> MeshSpec | None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    """Print suites (with member counts), catalogue meshes and solvers (an unavailable one with the reason)."""
+    """Print suites (with member counts), catalogue meshes, solvers (an unavailable one with the reason) and the
+    shipped variant sets (with --verbose, each one's description)."""
+    from frictionbench.bench.matrix import DEFAULT, MATRICES, SUITE_DEFAULTS, load_matrix, set_names
     from frictionbench.scenarios.meshes import catalogue
     from frictionbench.scenarios.suites import list_suites, load_suite
     from frictionbench.solvers.registry import solver_names, unavailable
@@ -82,6 +85,12 @@ def cmd_list(args: argparse.Namespace) -> int:
     for name in solver_names():
         reason = unavailable(name)
         print(f"  {name:8s} unavailable: {reason}" if reason else f"  {name}")
+    print("variant sets (--solvers; a file of your own: --matrix FILE):")
+    width = max(map(len, set_names()), default=0)
+    for name in set_names():
+        print(f"  {name:{width}s} {load_matrix(MATRICES / f'{name}.toml').description}" if args.verbose
+              else f"  {name}")
+    print(f"  default: {DEFAULT}; " + "; ".join(f"suite {k}: {v}" for k, v in SUITE_DEFAULTS.items()))
     return 0
 
 
@@ -125,33 +134,40 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def parse_variants(spec: str | None, epochs: int | None = None, suite: str | None = None) -> list:
-    """`--solvers` list -> Variants: names from `bench.variants.VARIANTS` (e.g. `licrom,affine,pod`; default the
-    suite's own set in SUITE_DEFAULTS, else DEFAULT) or of registered solvers (one variant with the solver's default
-    parameters); the reference solver's name adds nothing (its runs are always there); `epochs` overrides the
-    training epochs of the variants that train. A variant that two sets share is kept once, and two different runs of
-    one solver under one name are refused, naming the set (`bench.runner.distinct_variants`)."""
+def parse_variants(spec: str | None, epochs: int | None = None, suite: str | None = None,
+                   matrices: Sequence[str] = ()) -> list:
+    """`--solvers` list and `--matrix` files -> Variants: names of the shipped variant sets (`bench/matrices/`, e.g.
+    `licrom,affine,pod`) or of registered solvers (one variant with the solver's default parameters), then each
+    matrix file's variants (`bench.matrix.load_matrix`); without either, the suite's own set (SUITE_DEFAULTS) or
+    DEFAULT. The reference solver's name adds nothing (its runs are always there); `epochs` overrides the training
+    epochs of the variants that train. A variant that two sets share is kept once, and two different runs of one
+    solver under one name are refused, naming the set (`bench.runner.distinct_variants`)."""
     from dataclasses import replace
 
+    from frictionbench.bench.matrix import DEFAULT, EPOCHS_PARAM, SUITE_DEFAULTS, load_matrix, set_names, variant_set
     from frictionbench.bench.runner import REFERENCE, Variant, distinct_variants
-    from frictionbench.bench.variants import DEFAULT, SUITE_DEFAULTS, VARIANTS, variant_set
     from frictionbench.solvers.registry import solver_names
 
+    if spec is None and not matrices:
+        spec = SUITE_DEFAULTS.get(suite or "", DEFAULT)
+    sets = [(name, "--solvers") for name in (spec or "").split(",") if name and name != REFERENCE]
     out = []
-    for name in [s for s in (spec or SUITE_DEFAULTS.get(suite or "", DEFAULT)).split(",") if s and s != REFERENCE]:
-        if name in VARIANTS:
+    for name, field in [*sets, *((path, "--matrix") for path in matrices)]:
+        if field == "--matrix":
+            variants = list(load_matrix(name).variants)
+        elif name in set_names():
             variants = variant_set(name)
         elif name in solver_names():
             variants = [Variant(name)]
         else:
             raise ScenarioError("--solvers", name, "unknown variant set or solver; known: "
-                                f"{sorted(set(VARIANTS) | set(solver_names()))}")
-        with_epochs = [replace(v, params=v.params | {"epochs": epochs}) if epochs and "epochs" in v.params else v
-                       for v in variants]
+                                f"{sorted(set(set_names()) | set(solver_names()))} (a file of your own: --matrix)")
+        with_epochs = [replace(v, params=v.params | {EPOCHS_PARAM: epochs}) if epochs and EPOCHS_PARAM in v.params
+                       else v for v in variants]
         try:
             out = distinct_variants([*out, *with_epochs])
         except ValueError as err:
-            raise ScenarioError("--solvers", name, str(err)) from None
+            raise ScenarioError(field, name, str(err)) from None
     return out
 
 
@@ -170,7 +186,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         except CompareError as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
-    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite), device=args.device,
+    csv = run_suite(args.suite, args.out, parse_variants(args.solvers, args.epochs, args.suite, args.matrix), device=args.device,
                     jobs=resolve_jobs(args.jobs, args.device), executor=args.executor,
                     report=not args.no_report and not with_baseline,
                     only=args.only, resolution=args.resolution, allow_large=args.allow_large,
@@ -375,10 +391,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("run", help="run a suite's matrix and write results.csv and report.html")
     s.add_argument("--suite", required=True)
-    s.add_argument("--solvers", default=None, help="comma list of variant sets (or solver names) besides the "
-                   "reference (default: the suite's set in bench.variants.SUITE_DEFAULTS, else bench.variants.DEFAULT; "
-                   "the reference's name for the reference only)")
-    s.add_argument("--epochs", type=int, help="training epochs of the LiCROM variants (default: bench.variants)")
+    s.add_argument("--solvers", default=None, help="comma list of shipped variant sets (bench/matrices/*.toml; "
+                   "`frictionbench list` names them and the defaults) or solver names, besides the reference (default: "
+                   "the suite's own sets, else the default sets; the reference's name for the reference only)")
+    s.add_argument("--matrix", action="append", default=[], metavar="FILE",
+                   help="a variant set of your own: a matrix file (docs/variants.md); repeatable, with --solvers")
+    s.add_argument("--epochs", type=int, help="training epochs of the variants that train (default: their preset's, "
+                   "30: CI-sized)")
     s.add_argument("--only", help="run only the members whose names match this shell pattern, e.g. 'paper/cheese_*'")
     s.add_argument("--resolution", help="every member on its shape's catalogue mesh at this resolution instead of "
                                         "the suite's (e.g. coarse: a suite's truths where a small machine can "

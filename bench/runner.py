@@ -60,7 +60,7 @@ class Variant:
     scenario (e.g. a larger time step), `frame_scale` multiplies its frame_every (a finer step storing its frames at
     the scene's frame times). `curve` names the accuracy-for-time curve the variant is a point of, `curve_level` its
     level k on it (dt / 2^k) and `curve_twin` the curve of the same variant with every tet (cubature "all"), where
-    it uses an optimised cubature (`bench.variants.step_ladder`; '' and None: no curve). `training` names what a
+    it uses an optimised cubature (`bench.matrix.step_ladder`; '' and None: no curve). `training` names what a
     trained model learns from (`bench.training.TRAINING_DATA`): the training members' references at the scene's step
     (default) or their truths (the finest runs of their truth ladders); the training runs are part of the model's
     cache key, so the two never share a model."""

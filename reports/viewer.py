@@ -4,7 +4,7 @@ reference), the camera framed on the bodies and the plane cropped around their p
 
 Size: each run adds 4 float32 values (x, y, z, distance) per shown vertex per frame, about 21 bytes in the page
 (base64). Surfaces are decimated by vertex clustering in the rest shape to at most `max_triangles` triangles and
-frames subsampled to at most `max_frames`; docs/figures.md states the page's budget.
+frames subsampled to at most `max_frames`; experiments/figures.md states the page's budget.
 """
 
 from __future__ import annotations

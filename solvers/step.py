@@ -60,7 +60,7 @@ class StepProblem(ABC):
 # ----- where a step evaluates what contact lags --------------------------------------------------------------------
 #: Most solves of a `fixed-point` step (the first, converged, solve included; a later one a re-lag and its Newton
 #: iterations); a step that reaches the cap closes with a converged solve at its last lag and counts it in the
-#: step's `lag_unconverged` counter. The truth ladders of quick-damped take 3-10 a step on average (docs/figures.md,
+#: step's `lag_unconverged` counter. The truth ladders of quick-damped take 3-10 a step on average (experiments/figures.md,
 #: "The truth step").
 LAG_MAX_SOLVES = 24
 #: A `fixed-point` step's solves up to this one take one Newton iteration after their re-lag, later ones run to
@@ -81,7 +81,7 @@ class ContactLag:
       once more from it, to convergence (a predictor-corrector, as Heun's method corrects Euler's). Where the
       step resolves contact the lag is then O(h^2) off the step's end: second order at two solves, where the fixed
       point takes 2-5; in an impact or a stick/slip switch inside a step one correction is not the fixed point
-      (measured: docs/figures.md). The second solve is skipped where the re-lag is bitwise the same (free flight);
+      (measured: experiments/figures.md). The second solve is skipped where the re-lag is bitwise the same (free flight);
     - `fixed-point`: lagged iterations (IPC's) to the step's own end state: solve with the lag at the start, then
       re-lag at the current iterate's end state and take one Newton iteration from it, until re-lagging no longer
       moves the solution (the first Newton step after a re-lag is below tolerance, or the lagged quantities come
@@ -95,7 +95,7 @@ class ContactLag:
 
     (A third rule, the lag at the history's linear extrapolation to the step's end, was measured and dropped: it
     extrapolates the contact's unresolved ringing and diverged on a sliding block at dt 0.01-0.0025,
-    docs/figures.md.)
+    experiments/figures.md.)
     """
 
     mode: str = "start"

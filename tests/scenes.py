@@ -14,6 +14,9 @@ from frictionbench.scenarios.model import Initial, Material, MeshSpec, Plane, Sc
 
 G = 9.81
 
+#: The repository's experiment matrix files (the reduced-model study's variant sets, `--matrix FILE`).
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
 
 def block_drop(resolution: str | None = "coarse", clearance: float | None = 0.01, dt: float | None = 0.01,
                duration: float | None = 0.05, **tables: Any) -> dict[str, Any]:

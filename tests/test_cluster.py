@@ -25,7 +25,7 @@ import pytest
 
 from frictionbench.bench.runner import Task, Variant, run_suite, run_tasks
 from frictionbench.bench.store import RunStore
-from frictionbench.bench.variants import LICROM
+from frictionbench.bench.matrix import variant_set
 from frictionbench.scenarios.suites import load_suite
 from frictionbench.solvers.trajectory import Trajectory
 from frictionbench.solvers.warp_runtime import cache_root
@@ -151,7 +151,7 @@ def test_isolated_workers_reproduce_a_process_pool_run(tmp_path, cluster):
     equal (MKL's reproducible mode, `solvers.linalg`); a reduced run's dense products (torch evaluating the neural
     field's basis, BLAS) may round differently in a worker whose thread pools Dask's nanny started single-threaded
     than in one limited at run time, so its basis and states are compared to round-off (1e-12 of their size)."""
-    variants = [Variant("licrom", LICROM | {"epochs": 2}, label="r20"), Variant("pod", {"r": 8}, label="r8")]
+    variants = [Variant("licrom", variant_set("licrom")[0].params | {"epochs": 2}, label="r20"), Variant("pod", {"r": 8}, label="r8")]
     only = "quick-undamped/p[14]_mu0.[13]"  # p1_mu0.1 (train) and p4_mu0.3 (test)
     # without the truth ladder: its runs are full-space runs like the references, through the same tasks
     local = pd.read_csv(run_suite("quick-undamped", tmp_path / "process", variants, jobs=2, executor="process",

@@ -126,7 +126,7 @@ def first_difference(lag: str, solver: str) -> float:
 @pytest.mark.parametrize("lag", ["corrected", "fixed-point"])
 def test_a_relagged_step_removes_the_first_order_lag_error(solver: str, lag: str) -> None:
     """Halving dt moves the start lag's slide by its O(h) lag error (8.0e-3 L measured, full-space), the fixed-point
-    lag's by at most a tenth of that (1.7e-4 L measured: docs/figures.md), and the corrected lag's, its first two
+    lag's by at most a tenth of that (1.7e-4 L measured: experiments/figures.md), and the corrected lag's, its first two
     solves, as little (1.5e-4 L measured)."""
     start, relagged = first_difference("start", solver), first_difference(lag, solver)
     assert start > 2e-3
@@ -205,7 +205,7 @@ def _contact_impulses(lag: str, steps: int = 4) -> list[tuple[float, float]]:
 
 @pytest.mark.parametrize("lag", ["start", "corrected", "fixed-point"])
 def test_friction_takes_the_pressure_the_step_applies_only_when_relagged(lag: str) -> None:
-    """What stalls the damped truth ladders (docs/figures.md, "Why the damped ladders stall"): the start lag takes
+    """What stalls the damped truth ladders (experiments/figures.md, "Why the damped ladders stall"): the start lag takes
     friction's normal pressure at the step's start, so in the step where contact begins friction pushes with no
     pressure while the implicit contact applies the end's, and as the pressure falls, friction pushes with the
     larger pressure of the start: its impulse is not mu times the normal impulse (0, 0.22, 1.5, 1.8 times here). At

@@ -19,7 +19,6 @@ from frictionbench.bench.cli import main
 from frictionbench.bench.compare import compare_results
 from frictionbench.bench.gates import BOUND_ONLY, NO_LADDER_COST, UNCERTIFIED, check, load_gates
 from frictionbench.bench.runner import SESSION, Ladder, Variant, run_suite
-from frictionbench.bench.variants import DT_HALF
 from frictionbench.bench.store import RunStore
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.suites import load_suite, suite_from_dict
@@ -201,7 +200,8 @@ def test_an_uncertified_truth_makes_a_tight_accuracy_verdict_undecidable():
 
 def test_every_variant_row_splits_its_error_into_projection_reduction_and_time(tmp_path: Path):
     out = tmp_path / "out"
-    rows = _ladder(tmp_path, [Variant("affine", {}, label="affine12"), Variant("pod", {"r": 4}, label="r4"), DT_HALF])
+    rows = _ladder(tmp_path, [Variant("affine", {}, label="affine12"), Variant("pod", {"r": 4}, label="r4"),
+                              Variant("full", {}, label="dt-half", dt_scale=0.5)])
     store = RunStore(out / "runs")
     ref = rows[rows["variant"] == "reference"].iloc[0]
     truth = store.load(rows[rows["frontier_note"] == "the truth"].iloc[0]["run"])[0]
@@ -325,8 +325,12 @@ def test_paper_damped_is_the_papers_matrix_with_material_damping():
         assert a.scenario.material.damping_ratio is None and a.scenario.material.viscosity is None
         assert b.scenario.material.damping_ratio == 0.05 and b.scenario.effects.viscosity
         assert b.scenario.plane == a.scenario.plane and b.scenario.mesh == a.scenario.mesh
-    # the same ladder, under the fixed-point contact lag: friction's start-lagged pressure stalls a damped ladder
-    assert damped.truth == replace(paper.truth, contact_lag="fixed-point") and paper.truth.contact_lag == "start"
+    # the same ladder, under the fixed-point contact lag (friction's start-lagged pressure stalls a damped ladder),
+    # stepped as quick's truth is (modified Newton at Newton's tolerance 1e-4 L/s)
+    quick = load_suite("quick").truth
+    assert damped.truth == replace(paper.truth, contact_lag="fixed-point", newton_tol=quick.newton_tol,
+                                   chord=quick.chord, chord_contraction=quick.chord_contraction)
+    assert paper.truth.contact_lag == "start" and quick.chord_contraction > 0
 
 
 def test_quick_is_quick_undamped_with_paper_dampeds_damping_and_truth_lag():

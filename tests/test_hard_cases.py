@@ -1,6 +1,6 @@
 """Hard cases (issue 5): the hard suite's definition, step retries, the creep law, barrier contact, and the
 stability checks on the hard suite's block members under both contact laws (the cheese members run in
-`frictionbench run --suite hard`; their figures are in docs/figures.md)."""
+`frictionbench run --suite hard`; their figures are in experiments/figures.md)."""
 
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ def test_hard_suite_covers_the_stress_ranges():
             if {"expect-stick", "expect-slide", "marginal"} & set(s.tags)}
     assert sum(abs(g - 0.01) < 1e-5 for g in gaps.values()) >= 3
     assert sum(abs(g + 0.01) < 1e-5 for g in gaps.values()) >= 3
-    # the soft block at 30 and 45 degrees ratchets at tan + 0.01 (docs/figures.md): those cases state no verdict,
+    # the soft block at 30 and 45 degrees ratchets at tan + 0.01 (experiments/figures.md): those cases state no verdict,
     # and the stick cases there have a margin
     for theta, margin in ((30, 0.22), (45, 0.5)):
         assert "marginal" in HARD[f"t{theta}-ratchet"].scenario.tags

@@ -22,7 +22,7 @@ from frictionbench.solvers.licrom.reduced import ReducedSolver
 from frictionbench.solvers.model import State, build_model, initial_state
 from frictionbench.solvers.simulate import simulate
 
-from scenes import G
+from scenes import EXPERIMENTS, G
 
 
 def free_fall_drop(integrator: str, n: np.ndarray) -> np.ndarray:
@@ -226,26 +226,31 @@ def test_the_scenario_loader_knows_the_integrators_in_a_fresh_interpreter():
     assert "time.integrator" in done.stdout and "'rk4'" in done.stdout
 
 
-def test_sets_that_share_variants_run_each_once_and_a_name_defined_twice_is_refused(monkeypatch):
-    from dataclasses import replace
+def test_sets_that_share_variants_run_each_once_and_a_name_defined_twice_is_refused(tmp_path):
+    from dataclasses import asdict
 
-    from frictionbench.bench import variants
+    import tomli_w
+
     from frictionbench.bench.cli import parse_variants
+    from frictionbench.bench.matrix import set_names
 
-    fast, size = parse_variants("pod-fast"), parse_variants("pod-cubature-size")
-    both = parse_variants("pod-fast,pod-cubature-size")
+    fast, size = (str(EXPERIMENTS / f"{name}.toml") for name in ("pod-fast", "pod-cubature-size"))
+    fast_v, size_v = parse_variants(None, matrices=[fast]), parse_variants(None, matrices=[size])
+    both = parse_variants(None, matrices=[fast, size])
     names = [v.label for v in both]
-    assert len(names) == len(set(names)) == len({v.label for v in fast} | {v.label for v in size})
-    assert len(names) < len(fast) + len(size)
+    assert len(names) == len(set(names)) == len({v.label for v in fast_v} | {v.label for v in size_v})
+    assert len(names) < len(fast_v) + len(size_v)
     sweep = parse_variants("full-sweep")  # BDF2 is in both
     assert sorted(parse_variants("bdf2,full-sweep"), key=sweep.index) == sweep
-    assert len(parse_variants(",".join(variants.VARIANTS)))  # every set together: shared runs, no clash
-    clash = replace(size[0], params=size[0].params | {"tol": 1e-4})
-    monkeypatch.setitem(variants.VARIANTS, "clash", [clash])
-    with pytest.raises(ScenarioError, match=f"clash.*{size[0].label}"):
-        parse_variants("pod-cubature-size,clash")
+    assert len(parse_variants(",".join(set_names())))  # every shipped set together: shared runs, no clash
+    clash = asdict(size_v[0]) | {"params": size_v[0].params | {"tol": 1e-4}}
+    entry = {k: v for k, v in clash.items() if k in ("solver", "label", "params", "overrides", "dt_scale", "model",
+                                                      "training")}
+    (tmp_path / "clash.toml").write_text(tomli_w.dumps({"variant": [entry]}))
+    with pytest.raises(ScenarioError, match=f"clash.*{size_v[0].label}"):
+        parse_variants(None, matrices=[size, str(tmp_path / "clash.toml")])
     default = parse_variants(None)  # LiCROM's and POD's `r20` are two variants: a row's identity has its solver
     assert {(v.solver, v.label) for v in default} >= {("licrom", "r20"), ("pod", "r20")}
-    ladder = parse_variants("licrom-affine,licrom-ladder")  # `affine-r24` in both, on a curve in the second
-    (affine,) = [v for v in ladder if v.label == "affine-r24"]
+    ladder = parse_variants("licrom-affine", matrices=[str(EXPERIMENTS / "licrom-ladder.toml")])
+    (affine,) = [v for v in ladder if v.label == "affine-r24"]  # in both, on a curve in the second
     assert affine.curve == "affine-r24" and affine.curve_level == 0

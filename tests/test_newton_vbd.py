@@ -149,7 +149,7 @@ def test_incline_slides_at_coulombs_rate_with_enough_substeps(block):
     a, _ = _slide(model, NewtonVBD(substeps=16))
     assert a == pytest.approx(a_exact, rel=0.03)
     # one substep of 10 sweeps (Newton's defaults at this scene's step) is far off: here it holds the block (the
-    # verify suite's softer contact lets it slide a third too fast; docs/figures.md)
+    # verify suite's softer contact lets it slide a third too fast; experiments/figures.md)
     a1, _ = _slide(model, NewtonVBD())
     assert abs(a1 / a_exact - 1.0) > 0.2
 

@@ -1,4 +1,5 @@
-"""What an installed (non-editable) copy of the package carries: the shipped gates and suites are package data."""
+"""What an installed (non-editable) copy of the package carries: the shipped gates, suites and variant sets are package
+data."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import zipfile
 from pathlib import Path
 
 from frictionbench.bench.gates import load_gates
+from frictionbench.bench.matrix import variant_set
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,15 +42,16 @@ def test_an_installed_wheel_finds_its_gates_away_from_the_source_tree(tmp_path: 
     # one import name: the wheel's only top-level package is frictionbench, holding every package of the checkout
     assert {n.split("/")[0] for n in names if ".dist-info/" not in n} == {"frictionbench"}
     assert "frictionbench/bench/gates.toml" in names
+    assert "frictionbench/bench/matrices/presets.toml" in names and "frictionbench/bench/matrices/paper.toml" in names
     checkout_packages = {p.parent.relative_to(ROOT).as_posix() for name in packages
                          for p in (ROOT / name).rglob("__init__.py")} - {"frictionbench"}
     assert {f"frictionbench/{p}/__init__.py" for p in checkout_packages} <= set(names)
-    code = ("import frictionbench.bench.gates as g, pathlib; gates = g.load_gates(); "
-            "print(len(gates), pathlib.Path(g.__file__).resolve().parent)")
+    code = ("import frictionbench.bench.gates as g, frictionbench.bench.matrix as m, pathlib; gates = g.load_gates(); "
+            "print(len(gates), len(m.variant_set('paper')), pathlib.Path(g.__file__).resolve().parent)")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"} | {"PYTHONPATH": str(installed)}
     done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
                           timeout=120, check=False)
     assert done.returncode == 0, done.stderr
-    count, where = done.stdout.split()
-    assert int(count) == len(load_gates())
+    count, paper, where = done.stdout.split()
+    assert int(count) == len(load_gates()) and int(paper) == len(variant_set("paper"))  # the variant sets ship too
     assert Path(where) == (installed / "frictionbench" / "bench").resolve()  # the unpacked copy, not this checkout

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from frictionbench.bench.runner import Variant, available_variants
-from frictionbench.bench.variants import grid
+from frictionbench.bench.matrix import load_matrix
 from frictionbench.solvers import registry
 from frictionbench.solvers.step_stats import StepStats, stats_summary
 
@@ -146,15 +146,17 @@ def test_a_required_package_is_not_imported_to_say_the_solver_is_available(insta
     assert registry.unavailable("choosy") is None and "toyplug_heavy" not in sys.modules
 
 
-def test_the_variants_of_an_unavailable_solver_are_skipped_with_a_note(installed, capsys):
+def test_the_variants_of_an_unavailable_solver_are_skipped_with_a_note(installed, capsys, tmp_path):
     variants = [Variant("drift", label="d"), Variant("needy", label="n1"), Variant("needy", label="n2")]
     kept, skipped = available_variants(variants)
     assert kept == variants[:1]
     assert skipped == [{"solver": "needy", "variant": label, "reason": f"needs {MISSING!r}, which is not installed"}
                        for label in ("n1", "n2")]
     assert capsys.readouterr().err.count("note: skipping variant 'n") == 2
-    # a grid over an unavailable solver cannot check its parameters: it is built, and then skipped like the others
-    assert [v.params for v in grid("needy", "x{anything}", anything=[1, 2])] == [{"anything": 1}, {"anything": 2}]
+    # a matrix entry of an unavailable solver cannot check its parameters: it is read, and then skipped like the others
+    (tmp_path / "m.toml").write_text('[[variant]]\nsolver = "needy"\nlabel = "x{a}"\n'
+                                     'axis = [{ name = "a", param = "anything", values = [1, 2] }]\n')
+    assert [v.params for v in load_matrix(tmp_path / "m.toml").variants] == [{"anything": 1}, {"anything": 2}]
 
 
 def test_a_step_record_needs_only_its_wall_time_and_carries_a_solvers_own_counters():
@@ -196,7 +198,7 @@ def test_run_with_the_full_space_solver_does_not_import_torch(tmp_path):
     code = textwrap.dedent(f"""
         import sys
         from frictionbench.bench.cli import main
-        from frictionbench.bench.variants import variant_set
+        from frictionbench.bench.matrix import variant_set
         assert [v.solver for v in variant_set("full-sweep")] == ["full"] * 5
         rc = main(["run", "--suite", "verify", "--only", "verify/block_fall", "--solvers", "full", "--no-truth",
                    "--no-report", "--out", {str(tmp_path / "out")!r}])

@@ -14,7 +14,7 @@ import pytest
 
 from frictionbench.bench.cli import parse_variants
 from frictionbench.bench.runner import guard_resources, run_suite
-from frictionbench.bench.variants import VARIANTS
+from frictionbench.bench.matrix import set_names
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import scenario_from_dict
 from frictionbench.scenarios.resources import MAX_STEPS, check_resources, check_runs, stored_bytes, stored_frames
@@ -110,4 +110,4 @@ def test_a_variant_at_half_the_time_step_is_guarded_too():
 @pytest.mark.parametrize("name", list_suites())
 def test_shipped_suites_pass_the_guard_with_their_default_variants(name: str):
     guard_resources(load_suite(name), parse_variants(None, suite=name))
-    guard_resources(load_suite(name), parse_variants(",".join(VARIANTS)))  # and with every variant set
+    guard_resources(load_suite(name), parse_variants(",".join(set_names())))  # and with every shipped variant set

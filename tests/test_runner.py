@@ -17,7 +17,7 @@ from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import scenario_from_dict
 from frictionbench.scenarios.suites import load_suite
 
-from scenes import block_drop, mu_axis, suite_tables, write_toml
+from scenes import EXPERIMENTS, block_drop, mu_axis, suite_tables, write_toml
 
 SUITE = suite_tables("tiny", block_drop(), mu_axis(0.2, 0.6), description="two short block drops",
                      split={"test": [{"mu": "mu0.6"}]})
@@ -133,9 +133,8 @@ def test_ref_dt_change_is_the_finest_full_space_run_on_the_reference_mesh():
 
 def test_full_sweeps_larger_dt_and_other_mesh_are_compared_with_the_reference(tmp_path, suite_file):
     from frictionbench.bench.runner import Variant
-    from frictionbench.bench.variants import DT_HALF
 
-    variants = [Variant("full", {}, label="dt2x", dt_scale=2.0), DT_HALF,
+    variants = [Variant("full", {}, label="dt2x", dt_scale=2.0), Variant("full", {}, label="dt-half", dt_scale=0.5),
                 Variant("full", {}, label="other-mesh", remesh="alt", transfer=True)]
     results = pd.read_csv(run_suite(str(suite_file), tmp_path / "out", variants=variants, jobs=1, report=False))
     dt2 = results[results["variant"] == "dt2x"]
@@ -308,13 +307,14 @@ def test_resolution_runs_every_member_on_its_shapes_other_catalogue_mesh(tmp_pat
 def test_every_gate_names_a_variant_of_its_suites_default_matrix(suite):
     """A gate on a label no default run produces would only ever fail as 'matched no row' after a long run. A list
     of labels matches a row of any of them: at least one is in the default matrix, and every one is a label of some
-    variant set (an on-demand set's run is judged too)."""
+    variant set or experiment file (an on-demand run is judged too)."""
     from frictionbench.bench.cli import parse_variants
     from frictionbench.bench.gates import load_gates
-    from frictionbench.bench.variants import VARIANTS, variant_set
+    from frictionbench.bench.matrix import set_names
 
     labels = {"full/reference"} | {f"{v.solver}/{v.label or v.solver}" for v in parse_variants(None, suite=suite)}
-    known = labels | {f"{v.solver}/{v.label or v.solver}" for name in VARIANTS for v in variant_set(name)}
+    every = parse_variants(",".join(set_names()), matrices=[str(p) for p in EXPERIMENTS.glob("*.toml")])
+    known = labels | {f"{v.solver}/{v.label or v.solver}" for v in every}
     for gate in load_gates():
         if gate["suite"] == suite and gate["variant"] != "*":
             named = gate["variant"] if isinstance(gate["variant"], list) else [gate["variant"]]

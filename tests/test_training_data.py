@@ -10,11 +10,10 @@ from types import SimpleNamespace
 import pandas as pd
 import pytest
 
-from frictionbench.bench.runner import Task, Variant, guard_resources, run_suite, truth_config
+from frictionbench.bench.matrix import variant_set
+from frictionbench.bench.runner import Task, Variant, run_suite
 from frictionbench.bench.store import RunStore
 from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, training_runs
-from frictionbench.bench.variants import (AFFINE_R24, AFFINE_R24_CUB60, DEFAULT, RANKS, SUITE_DEFAULTS,
-                                          variant_set)
 from frictionbench.scenarios.suites import load_suite
 from frictionbench.solvers.licrom.plugins import Pod, _key
 
@@ -118,26 +117,12 @@ def test_training_runs_name_each_members_truth_or_why_it_has_none(tmp_path):
     assert TRAINING_DATA == ("reference", "truth") and NO_MODEL == "no reduced model for this mesh shape"
 
 
-def test_the_rank_and_training_sets_sweep_what_the_subspace_holds_and_pass_the_guard_on_quick():
-    ranks = variant_set("licrom-rank")
-    assert ranks[0].label == "affine12" and [v.params["r"] for v in ranks[1:]] == list(RANKS) == [24, 48, 96]
-    assert {v.params["cubature"] for v in ranks[1:]} == {"all"} and {v.training for v in ranks} == {"reference"}
-    training = variant_set("licrom-training")
-    assert [(v.label, v.training) for v in training] == [
-        ("affine-r24", "reference"), ("affine-r24-truthdata", "truth"),
-        ("affine-r24-cub60", "reference"), ("affine-r24-cub60-truthdata", "truth")]
-    assert [v.params for v in training] == [AFFINE_R24.params] * 2 + [AFFINE_R24_CUB60.params] * 2
-    assert all(s not in d.split(",") for s in ("licrom-rank", "licrom-training")
-               for d in (DEFAULT, *SUITE_DEFAULTS.values()))
-    quick = load_suite("quick")
-    guard_resources(quick, ranks + training, truth=truth_config(quick))
-
 
 def test_a_licrom_model_is_keyed_by_its_training_runs(tmp_path: Path, licrom_trainings):
     """The same settings on another training set train another model; on the same set, none."""
     from frictionbench.solvers.registry import get_solver
 
-    solver = get_solver("licrom")(device="cpu", **AFFINE_R24.params)
+    solver = get_solver("licrom")(device="cpu", **variant_set("licrom-affine")[0].params)
     references, truths = [tmp_path / "ref" / "trajectory.npz"], [tmp_path / "truth" / "trajectory.npz"]
     first, other, again = (solver.prepare("cheese", data, tmp_path / "models", "s")
                            for data in (references, truths, references))

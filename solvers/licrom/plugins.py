@@ -69,8 +69,8 @@ class _Reduced(Solver):
     tol: Newton's tolerance [1/s, relative to L] (the full-space solver's measure and default); hessian: "double" or
     "single", the precision of the Hessian's dense products (`solvers.licrom.reduced.HESSIAN_PRECISIONS`);
     hessian_refresh: "iteration" or "step", when the body terms' Hessian is evaluated (`HESSIAN_REFRESHES` there).
-    LiCROM's released integrator is the projected gradient at 3 iterations and 0.99 (`bench.variants`,
-    `licrom-released`). Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with either
+    LiCROM's released integrator is the projected gradient at 3 iterations and 0.99 (the
+    repository's experiments/licrom-released.toml). Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with either
     scheme."""
 
     integrators = tuple(INTEGRATORS)

@@ -81,7 +81,7 @@ HESSIAN_PRECISIONS = {"double": np.float64, "single": np.float32}
 `hessian` parameter). The Hessian only sets Newton's direction; the energy and the gradient, which decide where a
 step stops, stay in double. In single the products take under half the time (half or more of an r = 84 step on
 210 tets), and a run's iterations and trajectory are double's to round-off (measured on the coarse sphere at r = 60
-and 84: the same iteration counts, positions within 1.1e-13 of L; docs/figures.md)."""
+and 84: the same iteration counts, positions within 1.1e-13 of L; experiments/figures.md)."""
 
 HESSIAN_REFRESHES = ("iteration", "step")
 """When the body terms' Hessian (the cubature tets' elasticity and viscosity pulled back, `ReducedModel.pull_back`)
@@ -92,7 +92,7 @@ step stops, is exact either way: within a step the body's strain changes little,
 current one. It drops the kernels' Hessian factors and the dense pull-back from all but one evaluation a step,
 which were two thirds of a step at r = 60 on 150 tets (measured on the coarse sphere: 1.8x less time a step, the
 same Newton iterations, positions within 5e-8 of L; `pod-fast` runs 1.5-1.6x cheaper in the median, err_truth the
-same to 1.5e-4 of itself; docs/figures.md). The kept part turns with the body, so a body spinning fast within a
+same to 1.5e-4 of itself; experiments/figures.md). The kept part turns with the body, so a body spinning fast within a
 step at a tight tolerance takes more iterations (the method converges linearly)."""
 
 CANDIDATE_MARGIN = 1e-9
