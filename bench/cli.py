@@ -375,7 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_list)
 
     s = sub.add_parser("simulate", help="simulate one scenario")
-    s.add_argument("scenario", help="TOML path or suite member name (e.g. verify/slide_30deg_mu0.2)")
+    s.add_argument("scenario", help="TOML path (e.g. examples/incline.toml) or suite member name (e.g. verify/block_slide)")
     s.add_argument("--solver", default="full", help="a registered solver (see `list`)")
     s.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     s.add_argument("--model", help="checkpoint of a trained reduced model (licrom)")

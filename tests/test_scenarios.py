@@ -780,3 +780,16 @@ def test_the_suite_example_of_the_docs_reads_with_its_split(tmp_path):
     suite = load_suite(tmp_path / "mine.toml")
     assert [m.scenario.name for m in suite.train] == ["mine/mu0.1_p1"]
     assert [m.scenario.name for m in suite.test] == ["mine/mu0.5_p1"]
+
+
+def test_the_scenes_simulate_help_names_exist():
+    """`frictionbench simulate --help` names an example file and a member: both resolve."""
+    from frictionbench.bench.cli import resolve_scenario
+
+    done = subprocess.run([sys.executable, "-m", "frictionbench.bench.cli", "simulate", "--help"],
+                          capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1])
+    text = " ".join(done.stdout.split())
+    assert "e.g. examples/incline.toml" in text and "e.g. verify/block_slide" in text
+    root = Path(__file__).resolve().parents[1]
+    assert resolve_scenario(str(root / "examples" / "incline.toml")).name == "example/cheese_incline"
+    assert resolve_scenario("verify/block_slide").name == "verify/block_slide"
