@@ -58,11 +58,10 @@ _SCENE = "scene"  # the scene's own integrator or contact lag, where a transform
 
 @dataclass(frozen=True)
 class Matrix:
-    """One matrix file read: its name, description, source path and variants (in the file's order)."""
+    """One matrix file read: its name, description and variants (in the file's order)."""
 
     name: str
     description: str
-    source: str
     variants: tuple[Variant, ...]
 
 
@@ -97,7 +96,7 @@ def load_matrix(path: str | Path) -> Matrix:
             defined.update({v.label or v.solver: v for v in made})
             if kind == "variant":
                 out.extend(made)
-    return Matrix(str(head.get("name", path.stem)), str(head.get("description", "")), str(path), tuple(out))
+    return Matrix(str(head.get("name", path.stem)), str(head.get("description", "")), tuple(out))
 
 
 def _presets(path: Path) -> dict[str, Any]:
