@@ -16,12 +16,12 @@ import numpy as np
 
 from frictionbench.analysis.schema import COLUMNS
 from frictionbench.scenarios.meshes import TetMesh, bbox_diagonal
-from frictionbench.scenarios.model import GRAVITY, Contact, Material, Plane
-from frictionbench.solvers.baselines import project
+from frictionbench.scenarios.spec import GRAVITY, Contact, Material, Plane
 from frictionbench.solvers.physics.contact import lagged_pressure
 from frictionbench.solvers.physics.friction import creep_speed
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
+from frictionbench.solvers.reduced.bases import project
 from frictionbench.solvers.trajectory import Trajectory
 
 ArrayLike3 = Sequence[float] | np.ndarray
@@ -316,7 +316,7 @@ def creep_speed_law(traj: Trajectory, plane: Plane, contact: Contact, material: 
     along the plane. inf where friction cannot hold the body.
     """
     if contact.stiffness is None:
-        raise ValueError("contact.stiffness is 'auto': pass the resolved contact (solvers.model.resolved)")
+        raise ValueError("contact.stiffness is 'auto': pass the resolved contact (solvers.build.resolved)")
     n, d = unit_plane(plane.normal, plane.offset)
     mesh = TetMesh(X=traj.X, tets=traj.tets, surface=traj.surface, name="trajectory")
     area = mesh.surface_vertex_areas()

@@ -30,7 +30,7 @@ from frictionbench.analysis.metrics import (ArrayLike3, body_masses, center_of_m
 from frictionbench.analysis.schema import OUTCOMES, Outcome
 from frictionbench.analysis.truth import richardson
 from frictionbench.scenarios.meshes import TetMesh, bbox_diagonal
-from frictionbench.scenarios.model import GRAVITY, Contact, Material, Plane, Scenario
+from frictionbench.scenarios.spec import GRAVITY, Contact, Material, Plane, Scenario
 from frictionbench.solvers.integrators import Integrator
 from frictionbench.solvers.physics.contact import barrier, lagged_pressure, penalty_energy, signed_distance
 from frictionbench.solvers.trajectory import Trajectory

@@ -26,7 +26,7 @@ from frictionbench.analysis.transfer import transfer_to_mesh
 from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, level_ratio,
                                           wall_s_per_sim_s, with_frontier)
 from frictionbench.scenarios.meshes import bbox_diagonal
-from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.scenarios.spec import MeshSpec, Scenario
 from frictionbench.scenarios.suites import Suite, SuiteMember, TruthSpec
 from frictionbench.solvers.integrators import get_integrator
 from frictionbench.solvers.trajectory import Trajectory

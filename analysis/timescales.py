@@ -21,12 +21,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
-from frictionbench.scenarios.model import Scenario
+from frictionbench.scenarios.spec import Scenario
+from frictionbench.solvers.build import build_model
 from frictionbench.solvers.integrators import get_integrator
-from frictionbench.solvers.model import build_model
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.timescales import (TimeScales, elastic_scales, time_scales, touching_area,
                                                       unresolved_share)
-from frictionbench.solvers.scene import Model
 from frictionbench.solvers.trajectory import Trajectory
 
 #: The scene's columns: `ts_<field>` for each field of `solvers.physics.timescales.TimeScales`.

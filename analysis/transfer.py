@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frictionbench.solvers.baselines import barycentric_weights
+from frictionbench.solvers.reduced.bases import barycentric_weights
 from frictionbench.solvers.trajectory import Trajectory
 
 

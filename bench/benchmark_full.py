@@ -12,12 +12,12 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-from frictionbench.bench.cli import parse_mesh
 from frictionbench.analysis.table import provenance
-from frictionbench.scenarios.model import TimeSpec
+from frictionbench.bench.cli import parse_mesh
+from frictionbench.scenarios.atomic import write_json_atomic
+from frictionbench.scenarios.spec import TimeSpec
 from frictionbench.scenarios.suites import load_suite
 from frictionbench.solvers.run import run_scenario
-from frictionbench.scenarios.atomic import write_json_atomic
 
 
 def benchmark(meshes: list[str], device: str, steps: int, linear: str) -> list[dict]:

@@ -24,7 +24,7 @@ residuals); Newton iterations per step; and the end state's distance to the firs
 the solver's original path (SuperLU with a fresh ordering per iteration, one-thread assembly).
 
 The reduced step (`--reduced`, one thread): a basis of `--r` columns, the 12 affine fields and POD modes of the
-full-space frames that led to the mid-contact state (`solvers.baselines.pod_basis`: no network to train, the
+full-space frames that led to the mid-contact state (`solvers.reduced.bases.pod_basis`: no network to train, the
 same r as the trained LiCROM variants), and `--cubature` optimised cubature tets on those frames; the projected
 mid-contact state steps `--reduced-steps` steps after a warm-up step in each reduced configuration, `all-points`
 (the point terms at every contact sample point), `candidates` (at the candidate points only,
@@ -52,18 +52,19 @@ from collections.abc import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from frictionbench.solvers.baselines import pod_basis, project
-from frictionbench.solvers.licrom.cubature import optimized_cubature
-from frictionbench.solvers.licrom.reduced import ReducedSolver
+from frictionbench.solvers.reduced.bases import pod_basis, project
+from frictionbench.solvers.reduced.cubature import optimized_cubature
+from frictionbench.solvers.reduced.solver import ReducedSolver
 
 from frictionbench.analysis.table import provenance
 from frictionbench.bench.cli import resolve_scenario
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import Scenario
+from frictionbench.scenarios.spec import Scenario
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.model import Model, State, build_model, initial_state
+from frictionbench.solvers.model import Model, State
 
 CASES = ["paper/cheese_p1_mu0.5", "paper/sphere_p1_mu0.5", "hard/E1e9"]
 CONFIGS = ["superlu:1", "pardiso:1", "pardiso:2"]

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from frictionbench.bench.executors import usable_cores
 from frictionbench.scenarios.errors import ScenarioError
-from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.scenarios.spec import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TruthSpec
 
 JOBS_HELP = ("runs at a time, each with cores / jobs threads (default: on the CPU this machine's usable cores, "

@@ -3,7 +3,7 @@
     python -m frictionbench.bench.device_check --out out/device_check.json          # on the GPU
     python -m frictionbench.bench.device_check --device cpu --out out/cpu_check.json  # the same checks on the CPU
 
-CI has no GPU, so the CUDA path of the cubature kernels (`solvers.licrom.kernels`, `device = "cuda"`) is checked
+CI has no GPU, so the CUDA path of the cubature kernels (`solvers.reduced.kernels`, `device = "cuda"`) is checked
 here, on a machine that has one. Two checks:
 
 - kernels: the Stable Neo-Hookean and Kelvin-Voigt kernels at `--tets` random deformation gradients (a tenth of them
@@ -12,7 +12,7 @@ here, on a machine that has one. Two checks:
   the reference's largest entry, and the mean wall time of a Hessian call [us] (launch and copies included).
 - run: a block spinning and drifting in free flight with Kelvin-Voigt damping (no plane: the point terms' kernels
   run on the CPU only), stepped by a reduced solver whose body terms are evaluated by the numpy references
-  (`solvers.licrom.terms.ReferenceEvaluation`, the Hessian every iteration), then by the device's kernels with the
+  (`solvers.reduced.terms.ReferenceEvaluation`, the Hessian every iteration), then by the device's kernels with the
   body Hessian every iteration and once a step (`hessian_refresh`): Newton iterations, convergence and the largest
   distance of each kernel run from the reference run [fraction of L].
 
@@ -29,14 +29,14 @@ import time
 import numpy as np
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import smooth_basis
-from frictionbench.solvers.licrom import kernels as K
-from frictionbench.solvers.licrom.reduced import HESSIAN_REFRESHES, ReducedSolver
-from frictionbench.solvers.licrom.terms import ReferenceEvaluation
-from frictionbench.solvers.model import build_model, initial_state
+from frictionbench.scenarios.spec import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.physics import material as pm
 from frictionbench.solvers.physics import viscosity as pv
+from frictionbench.solvers.reduced import kernels as K
+from frictionbench.solvers.reduced.bases import smooth_basis
+from frictionbench.solvers.reduced.solver import HESSIAN_REFRESHES, ReducedSolver
+from frictionbench.solvers.reduced.terms import ReferenceEvaluation
 from frictionbench.solvers.simulate import simulate
 
 KERNEL_RTOL = 1e-12
@@ -84,7 +84,7 @@ def spinning_block() -> Scenario:
 
 
 def check_run(device: str, r: int = 24, seed: int = 0) -> list[dict]:
-    """The spinning block on a smooth basis of r columns (`solvers.baselines.smooth_basis`), its body terms
+    """The spinning block on a smooth basis of r columns (`solvers.reduced.bases.smooth_basis`), its body terms
     by the numpy references (the Hessian every iteration), then by the device's kernels under each
     `HESSIAN_REFRESHES`, each compared with the first (module doc)."""
     model = build_model(spinning_block(), load_mesh(MeshSpec("block", "coarse")))

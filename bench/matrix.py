@@ -36,7 +36,7 @@ from typing import Any
 
 from frictionbench.bench.runner import Variant
 from frictionbench.scenarios.errors import ScenarioError, checked_table
-from frictionbench.scenarios.model import CONTACT_LAGS, integrator_names
+from frictionbench.scenarios.spec import CONTACT_LAGS, integrator_names
 
 #: The shipped variant sets (one file each) and the shared parameter presets.
 MATRICES = Path(__file__).with_name("matrices")
@@ -234,7 +234,7 @@ def curve_name(label: str, integrator: str | None = None) -> str:
 def step_ladder(variant: Variant, levels: Sequence[int] = (0, 1, 2, 3),
                 integrators: Sequence[str | None] = (None, "bdf2"), twin: str | None = None) -> list[Variant]:
     """The variant's own accuracy-for-time curves: per integrator (None: the scene's own; a name of
-    `scenarios.model.integrator_names()` sets time.integrator) and level k of `levels`, the variant at dt / 2^k
+    `scenarios.spec.integrator_names()` sets time.integrator) and level k of `levels`, the variant at dt / 2^k
     (its `dt_scale` x 2^-k) storing its frames at the same times (frame_every x 2^k), as the truth's ladder does.
 
     Labels are `<label>[-<integrator>][-dt/<2^k>]` (`affine-r24-cub60-bdf2-dt/4`; level 0 with the scene's

@@ -38,7 +38,7 @@ from frictionbench.bench.store import RunStore, TruthStore, run_key, truth_store
 from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, shape_of
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
-from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.scenarios.spec import MeshSpec, Scenario
 from frictionbench.scenarios.suites import TOLERANCE_FACTOR, SuiteMember, TruthSpec, load_suite
 from frictionbench.solvers.registry import entries, register_entries, unavailable
 from frictionbench.solvers.trajectory import Trajectory

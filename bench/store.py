@@ -18,7 +18,7 @@ from pathlib import Path
 
 from frictionbench.scenarios.atomic import atomic_open, write_json_atomic
 from frictionbench.scenarios.load import scenario_to_dict
-from frictionbench.scenarios.model import MeshSpec, Scenario
+from frictionbench.scenarios.spec import MeshSpec, Scenario
 from frictionbench.solvers.trajectory import Trajectory
 from frictionbench.solvers.version import PHYSICS_VERSION
 

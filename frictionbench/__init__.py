@@ -5,10 +5,6 @@ The distribution installs this one top-level package; its subpackages (`friction
 repository's top-level folders, mapped by `package-dir` in pyproject.toml. In a source checkout (the folders beside
 this one) they are found through the repository root, so that the checkout runs with `PYTHONPATH=<checkout>` as well
 as installed.
-
-Importing the package registers the built-in time integrators (`solvers.integrators`) with the scenario loader,
-which validates `time.integrator` against their names: the loader sits in the bottom layer and may not import
-solvers, while any import of a subpackage imports this package first.
 """
 
 import os
@@ -25,5 +21,3 @@ os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 _checkout = Path(__file__).resolve().parent.parent
 if (_checkout / "pyproject.toml").is_file() and (_checkout / "bench" / "__init__.py").is_file():
     __path__.append(str(_checkout))
-
-import frictionbench.solvers.integrators  # noqa: E402,F401  (after __path__: in a checkout it is found there)

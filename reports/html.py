@@ -33,7 +33,7 @@ from frictionbench.reports.plots import (error_over_time_figure, error_parts_fig
                                          step_size_figure)
 from frictionbench.reports.viewer import DEFAULT_BUDGET, ViewerBudget, viewer_figure
 from frictionbench.scenarios.atomic import write_text_atomic
-from frictionbench.scenarios.model import Plane
+from frictionbench.scenarios.spec import Plane
 from frictionbench.solvers.trajectory import Trajectory
 
 CSS = """

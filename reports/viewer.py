@@ -16,7 +16,7 @@ import numpy as np
 
 from frictionbench.reports.interactive import text, typed_array
 from frictionbench.scenarios.meshes import bbox_diagonal
-from frictionbench.scenarios.model import Plane
+from frictionbench.scenarios.spec import Plane
 from frictionbench.solvers.trajectory import Trajectory
 
 #: Colours of the distance: pale at zero, red at the largest distance shown.

@@ -4,7 +4,7 @@ Every problem raises `ScenarioError(field, value, reason)` before any simulation
 of the offending entry (`material.poisson_ratio`, `plane.normal`, ...) or, for an unreadable or malformed file,
 the file's path; the message always contains the offending value.
 
-Format (one scenario per file; tables mirror the dataclasses of `scenarios.model`; every key except `name` is
+Format (one scenario per file; tables mirror the dataclasses of `scenarios.spec`; every key except `name` is
 optional and defaults to the dataclass default unless said otherwise below):
 
     name = "cheese_slope"            # required; letters, digits, `_ . + -`, parts joined by `/`
@@ -47,7 +47,7 @@ optional and defaults to the dataclass default unless said otherwise below):
                   there is nothing to measure a clearance from: it defaults to false and a number is an error.
                   The barrier law needs a positive initial gap, so `clearance = 0` with it is an error.
     [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
-                  integrator = a name of `scenarios.model.integrator_names()` (the integrators of
+                  integrator = a name of `scenarios.spec.integrator_names()` (the integrators of
                   `solvers.integrators`); default TimeSpec.integrator, backward Euler;
                   optional adaptive steps (docs/design.md, "Adaptive steps"): tol > 0 (finite; the local error
                   allowed per step, a fraction of L; absent: fixed steps of dt), then dt is the first and largest
@@ -87,7 +87,7 @@ from pathlib import Path
 from typing import Any
 
 from frictionbench.scenarios.errors import ScenarioError, checked_table
-from frictionbench.scenarios.model import (CONTACT_LAGS, Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
+from frictionbench.scenarios.spec import (CONTACT_LAGS, Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec,
                                            Vec3, integrator_names)
 
 TOP_KEYS = ("name", "description", "tags", "gravity", "mesh", "material", "plane", "contact", "initial", "time",

@@ -40,7 +40,7 @@ from scipy.sparse.csgraph import connected_components
 from frictionbench.scenarios import meshgen
 from frictionbench.scenarios.atomic import atomic_open
 from frictionbench.scenarios.errors import MeshError
-from frictionbench.scenarios.model import MeshSpec
+from frictionbench.scenarios.spec import MeshSpec
 
 Array = np.ndarray
 

@@ -13,7 +13,7 @@ import math
 from collections.abc import Iterable
 
 from frictionbench.scenarios.errors import ScenarioError
-from frictionbench.scenarios.model import MAX_STEPS, MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.spec import MAX_STEPS, MeshSpec, Scenario, TimeSpec
 
 #: Most bytes the stored frames of one run may take, in memory and again on disk, without an override.
 MAX_STORED_BYTES = 2 * 2**30

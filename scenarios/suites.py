@@ -79,7 +79,7 @@ from typing import Any, Literal
 
 from frictionbench.scenarios.errors import ScenarioError, checked_table
 from frictionbench.scenarios.load import NAME_PART, read_toml, scenario_from_dict
-from frictionbench.scenarios.model import CONTACT_LAGS, Scenario, integrator_names
+from frictionbench.scenarios.spec import CONTACT_LAGS, Scenario, integrator_names
 
 Split = Literal["train", "test"]
 SPLITS: tuple[Split, ...] = ("train", "test")

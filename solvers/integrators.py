@@ -37,9 +37,10 @@ the two formulas' error constants at the step ratio w (docs/design.md, "Adaptive
   (1 + w)^2 / (6w (1 + 2w)) (implicit) and -(1 + w) / (6w) (predictor), so the estimate is
   (1 + w) / (2 + 3w) (y^{n+1} - predictor) (2/5 at w = 1), of order p = 2.
 
-The registry lives here, with the classes; the scenario loader, in the bottom layer that may not import solvers
-(pyproject.toml's layer contracts), validates `time.integrator` against the names `register` hands down to it
-(`scenarios.model.register_integrator_name`): one list of names, filled by the classes themselves.
+The registry lives here, with the classes. The scenario loader, in the bottom layer that may not import solvers
+(pyproject.toml's layer contracts), validates `time.integrator` against the built-in names it declares
+(`scenarios.spec.BUILTIN_INTEGRATORS`, which a test holds equal to this module's classes) and those an extension's
+`register` hands down to it (`scenarios.spec.register_integrator_name`).
 """
 
 from __future__ import annotations
@@ -49,10 +50,10 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from frictionbench.scenarios.model import register_integrator_name
+from frictionbench.scenarios.spec import register_integrator_name
 
-if TYPE_CHECKING:  # a Model (solvers.scene) holds its integrator from this module
-    from frictionbench.solvers.scene import State
+if TYPE_CHECKING:  # a Model (solvers.model) holds its integrator from this module
+    from frictionbench.solvers.model import State
 
 #: Relative tolerance on two step sizes for them to count as equal (the times are sums of steps: a step recomputed
 #: from them agrees to round-off, while a change of step size is a factor of 2 at least).

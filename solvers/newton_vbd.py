@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from frictionbench.solvers.contract import Solver, check_count
+from frictionbench.solvers.model import Model, State
 from frictionbench.solvers.physics.material import lame_parameters
-from frictionbench.solvers.scene import Model, State
 from frictionbench.solvers.step_stats import StepStats
 
 

@@ -25,9 +25,9 @@ ENTRY_POINT_GROUP = "frictionbench.solvers"
 
 _ENTRIES: dict[str, str] = {
     "full": "frictionbench.solvers.full.plugin:FullSpace",
-    "licrom": "frictionbench.solvers.licrom.plugins:Licrom",
-    "pod": "frictionbench.solvers.licrom.plugins:Pod",
-    "affine": "frictionbench.solvers.licrom.plugins:Affine",
+    "licrom": "frictionbench.solvers.licrom.plugin:Licrom",
+    "pod": "frictionbench.solvers.reduced.pod:Pod",
+    "affine": "frictionbench.solvers.reduced.pod:Affine",
 }
 
 

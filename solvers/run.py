@@ -7,11 +7,12 @@ import time
 import numpy as np
 
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
-from frictionbench.scenarios.model import MeshSpec, Scenario
-from frictionbench.solvers.step_stats import stats_summary
-from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.scenarios.spec import MeshSpec, Scenario
+from frictionbench.solvers.build import build_model, initial_state
+from frictionbench.solvers.model import State
 from frictionbench.solvers.registry import get_solver
 from frictionbench.solvers.simulate import Diverged, simulate
+from frictionbench.solvers.step_stats import stats_summary
 from frictionbench.solvers.trajectory import Trajectory
 
 

@@ -26,8 +26,9 @@ from typing import Protocol
 import numpy as np
 from tqdm import tqdm
 
+from frictionbench.solvers.build import initial_state
 from frictionbench.solvers.integrators import Integrator
-from frictionbench.solvers.model import Model, State, initial_state
+from frictionbench.solvers.model import Model, State
 from frictionbench.solvers.step_stats import StepStats, combined
 from frictionbench.solvers.trajectory import Trajectory
 

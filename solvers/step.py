@@ -1,4 +1,4 @@
-"""One step's incremental potential as a `solvers.newton.NewtonProblem`, shared by the implicit solvers: a backend
+"""One step's incremental potential as a `solvers.newton_method.NewtonProblem`, shared by the implicit solvers: a backend
 gives the energy, the Newton direction, the step norm and the contact points of its unknowns, and `StepProblem`
 caps every step by the one feasible-step rule of the physics terms (`solvers.physics.terms.max_feasible_step`:
 the barrier law keeps every contact point above the plane; without a capping term a step is never capped), and
@@ -14,11 +14,11 @@ from typing import Protocol
 
 import numpy as np
 
-from frictionbench.scenarios.model import CONTACT_LAGS
-from frictionbench.solvers.newton import Direction, NewtonResult
+from frictionbench.scenarios.spec import CONTACT_LAGS
+from frictionbench.solvers.model import Model
+from frictionbench.solvers.newton_method import Direction, NewtonResult
 from frictionbench.solvers.physics.contact import damped_points, signed_distance
 from frictionbench.solvers.physics.terms import Term, lagged_at_start, max_feasible_step, step_capping
-from frictionbench.solvers.scene import Model
 
 
 class StepProblem(ABC):
@@ -38,7 +38,7 @@ class StepProblem(ABC):
         """The Newton direction at y (from the PSD-projected Hessian)."""
 
     def chord_direction(self, y: np.ndarray) -> Direction | None:
-        """The chord direction at y (the last direction's factorisation reused; `solvers.newton.minimise`), None
+        """The chord direction at y (the last direction's factorisation reused; `solvers.newton_method.minimise`), None
         where the backend keeps none (the default)."""
         return None
 

@@ -17,7 +17,7 @@ class StepStats:
     final convergence measure (a Newton solver's |dx|_inf / h [m/s], the reduced solver's an upper bound of it
     where that settled convergence; 0 for a solver without one); counters: the
     solver's own counts (name -> count, summed over a retried step's attempts and over the run; the Newton solvers'
-    are `line_search_halvings`, `stalls` and `linear_iters`: `solvers.newton.NewtonResult.step_stats`); retries:
+    are `line_search_halvings`, `stalls` and `linear_iters`: `solvers.newton_method.NewtonResult.step_stats`); retries:
     times the step was redone as two half steps after a failure (set by `solvers.simulate`, never by the solver; an
     adaptive run's: attempts redone smaller after a failed solve or a non-finite state).
 

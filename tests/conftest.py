@@ -13,7 +13,7 @@ from hypothesis import settings
 from threadpoolctl import threadpool_limits
 
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import MeshSpec
+from frictionbench.scenarios.spec import MeshSpec
 
 settings.register_profile("deterministic", derandomize=True, database=None)
 settings.register_profile("explore")

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
-from frictionbench.scenarios.model import Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
+from frictionbench.scenarios.spec import Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
 
 G = 9.81
 

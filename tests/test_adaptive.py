@@ -24,14 +24,14 @@ from frictionbench.bench.store import RunStore
 from frictionbench.reports.plots import step_size_figure
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import scenario_from_dict, scenario_hash, scenario_to_dict
-from frictionbench.scenarios.model import MAX_STEPS, TimeSpec
 from frictionbench.scenarios.resources import check_resources
+from frictionbench.scenarios.spec import MAX_STEPS, TimeSpec
 from frictionbench.scenarios.suites import TOLERANCE_FACTOR, suite_from_dict
-from frictionbench.solvers.baselines import affine_basis
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver
 from frictionbench.solvers.integrators import BDF2, BackwardEuler, Integrator
-from frictionbench.solvers.licrom.reduced import ReducedSolver
-from frictionbench.solvers.model import build_model, initial_state
+from frictionbench.solvers.reduced.bases import affine_basis
+from frictionbench.solvers.reduced.solver import ReducedSolver
 from frictionbench.solvers.simulate import CONTROLLER, advance, error_norm, next_step, simulate
 
 from scenes import G, block_drop, mu_axis, suite_tables, write_toml

@@ -8,10 +8,10 @@ import skfem
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import Material, MeshSpec, Scenario
+from frictionbench.scenarios.spec import Material, MeshSpec, Scenario
+from frictionbench.solvers.build import build_model
 from frictionbench.solvers.full.solver import FullSpaceSolver
 from frictionbench.solvers.full.static import static_equilibrium
-from frictionbench.solvers.model import build_model
 
 E, NU, RHO, G = 1e9, 0.3, 1000.0, 9.81
 

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import TimeSpec
-from frictionbench.solvers.baselines import affine_basis
+from frictionbench.scenarios.spec import TimeSpec
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver, _LaggedStep
-from frictionbench.solvers.licrom.reduced import ReducedSolver
-from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.model import State
 from frictionbench.solvers.physics.contact import damping_for_ratio
+from frictionbench.solvers.reduced.bases import affine_basis
+from frictionbench.solvers.reduced.solver import ReducedSolver
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.step import ContactLag, lagged_contact, solve_lagged
 

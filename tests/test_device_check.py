@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 from frictionbench.bench import device_check as dc
-from frictionbench.solvers.licrom import kernels as K
+from frictionbench.solvers.reduced import kernels as K
 
 
 def test_the_device_check_passes_on_the_cpu_kernels(tmp_path, capsys):

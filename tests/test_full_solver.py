@@ -7,9 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.spec import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.model import State
 from frictionbench.solvers.physics import contact as pc
 from frictionbench.solvers.physics import friction as pf
 from frictionbench.solvers.physics import material as pm

@@ -79,8 +79,9 @@ def test_the_chord_test_and_modified_newton_factorise_less_and_meet_the_same_tol
     either's end state lies within what the Newton tolerance allows of the plain run's."""
     from frictionbench.bench.benchmark_step import mid_contact_state, truth_scenario
     from frictionbench.scenarios.meshes import load_mesh
+    from frictionbench.solvers.build import build_model
     from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-    from frictionbench.solvers.model import State, build_model
+    from frictionbench.solvers.model import State
 
     sc, params = truth_scenario("quick/p1_mu0.5", 2)
     model = build_model(sc, load_mesh(sc.mesh))

@@ -12,8 +12,9 @@ import pytest
 from frictionbench.analysis.metrics import stability, stick, volume_ratio
 from frictionbench.scenarios.meshes import bbox_diagonal
 from frictionbench.scenarios.suites import load_suite
+from frictionbench.solvers.build import build_model, resolved
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.model import State, build_model, resolved
+from frictionbench.solvers.model import State
 from frictionbench.solvers.physics.contact import auto_penalty_stiffness
 from frictionbench.solvers.physics.friction import creep_speed
 from frictionbench.solvers.run import run_scenario

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from frictionbench.bench.cli import main
 from frictionbench.scenarios.errors import MeshError, ScenarioError
 from frictionbench.scenarios.meshes import load_mesh, make_mesh
-from frictionbench.scenarios.model import MeshSpec
+from frictionbench.scenarios.spec import MeshSpec
 from frictionbench.scenarios.suites import suite_from_dict
 
 from scenes import block_drop, mu_axis, suite_tables

@@ -14,12 +14,13 @@ import pytest
 
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import scenario_from_dict
-from frictionbench.scenarios.model import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec, integrator_names
-from frictionbench.solvers.baselines import affine_basis
+from frictionbench.scenarios.spec import Effects, Initial, Material, MeshSpec, Scenario, TimeSpec, integrator_names
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.integrators import BDF2, INTEGRATORS, BackwardEuler, get_integrator
-from frictionbench.solvers.licrom.reduced import ReducedSolver
-from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.model import State
+from frictionbench.solvers.reduced.bases import affine_basis
+from frictionbench.solvers.reduced.solver import ReducedSolver
 from frictionbench.solvers.simulate import simulate
 
 from scenes import EXPERIMENTS, G
@@ -214,16 +215,24 @@ def test_an_unknown_integrator_is_refused_naming_the_field_the_value_and_the_kno
         get_integrator("rk4")
 
 
-def test_the_scenario_loader_knows_the_integrators_in_a_fresh_interpreter():
-    """The bottom layer knows the names only from `solvers.integrators`, which importing the package registers: a
-    program that imports the loader alone validates `time.integrator` against them."""
+def test_the_scenario_loader_knows_the_integrators_in_a_fresh_interpreter_without_importing_solvers():
+    """The bottom layer declares the built-in names (`BUILTIN_INTEGRATORS`): a program that imports the loader alone
+    validates `time.integrator` against them, and no solver module is imported on the way."""
     code = ("import frictionbench.scenarios.load as L\n"
             "print(L.scenario_from_dict({'name': 'x', 'time': {'integrator': 'bdf2'}}).time.integrator)\n"
             "try:\n    L.scenario_from_dict({'name': 'x', 'time': {'integrator': 'rk4'}})\n"
-            "except L.ScenarioError as e:\n    print(e)")
+            "except L.ScenarioError as e:\n    print(e)\n"
+            "import sys\nprint(sorted(m for m in sys.modules if m.startswith('frictionbench.solvers')))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.splitlines()[0] == "bdf2"
     assert "time.integrator" in done.stdout and "'rk4'" in done.stdout
+    assert done.stdout.splitlines()[-1] == "[]"
+
+
+def test_the_declared_integrator_names_are_the_integrator_classes():
+    from frictionbench.scenarios.spec import BUILTIN_INTEGRATORS
+
+    assert tuple(INTEGRATORS) == BUILTIN_INTEGRATORS
 
 
 def test_sets_that_share_variants_run_each_once_and_a_name_defined_twice_is_refused(tmp_path):

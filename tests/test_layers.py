@@ -91,16 +91,16 @@ def test_an_import_against_the_layers_is_a_failure(tmp_path: Path) -> None:
     assert "frictionbench.analysis.metrics -> frictionbench.bench.runner" in done.stdout
 
 
-@pytest.mark.parametrize("backend", ["frictionbench.solvers.full.solver", "frictionbench.solvers.licrom.reduced",
-                                     "frictionbench.solvers.model"])
+@pytest.mark.parametrize("backend", ["frictionbench.solvers.full.solver", "frictionbench.solvers.reduced.solver",
+                                     "frictionbench.solvers.build"])
 def test_physics_that_imports_a_backend_or_the_model_builder_is_a_failure(tmp_path: Path, backend: str) -> None:
     """A physics term that names a backend (even only for type checking) or imports the model builder (the old
-    import circle solvers.model -> physics -> solvers.model) breaks the contracts."""
+    import circle solvers.build -> physics -> solvers.build) breaks the contracts."""
     checkout = tmp_path / "checkout"
     layout(checkout)
     (checkout / "solvers" / "physics" / "terms.py").write_text(
         f"from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import {backend}\n")
-    for module in (backend, "frictionbench.solvers.model"):
+    for module in (backend, "frictionbench.solvers.build"):
         checkout.joinpath(*module.split(".")[1:]).with_suffix(".py").write_text(
             "import frictionbench.solvers.physics.terms\n")
     done = lint(checkout, tmp_path)

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from frictionbench.solvers.baselines import N_AFFINE, affine_fields, project
 from frictionbench.solvers.licrom.train import (
     CheckpointError, TrainingData, encode, evaluate_basis, load_checkpoint, projection_error,
     TrainSettings, reconstruction_error, train, train_from_trajectories,
 )
+from frictionbench.solvers.reduced.bases import N_AFFINE, affine_fields, project
 from frictionbench.solvers.trajectory import Trajectory
 
 BOX = np.array([1.0, 0.5, 0.3])  # [m]

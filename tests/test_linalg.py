@@ -17,11 +17,11 @@ import scipy.sparse as sp
 
 from frictionbench.bench.cli import resolve_scenario
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import TimeSpec
+from frictionbench.scenarios.spec import TimeSpec
 from frictionbench.solvers import linalg
 from frictionbench.solvers import kernels as K
+from frictionbench.solvers.build import build_model
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.model import build_model
 from frictionbench.solvers.physics.terms import StepData, lagged_at_start
 from frictionbench.solvers.run import run_scenario
 from frictionbench.solvers.simulate import simulate

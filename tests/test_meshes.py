@@ -25,7 +25,7 @@ from frictionbench.scenarios.meshes import (
     read_mesh_file,
     validate_mesh,
 )
-from frictionbench.scenarios.model import MeshSpec
+from frictionbench.scenarios.spec import MeshSpec
 
 BOXES = {"block": (0.2, 0.1, 0.2), "beam": (1.0, 0.1, 0.1), "slab": (0.4, 0.02, 0.4)}
 EULER = {"cheese": 2 - 2 * CHEESE_GENUS, "sphere": 2, "block": 2, "beam": 2, "slab": 2}

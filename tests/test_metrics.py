@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from frictionbench.analysis import metrics
-from frictionbench.scenarios.model import Material, Plane
+from frictionbench.scenarios.spec import Material, Plane
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
 from frictionbench.solvers.trajectory import Trajectory

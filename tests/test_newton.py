@@ -1,11 +1,11 @@
-"""The shared Newton loop (solvers.newton) on small problems with known answers."""
+"""The shared Newton loop (solvers.newton_method) on small problems with known answers."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from frictionbench.solvers.newton import Direction, feasible_step, minimise
+from frictionbench.solvers.newton_method import Direction, feasible_step, minimise
 
 
 class Quartic:

@@ -11,15 +11,15 @@ import pytest
 import warp as wp
 
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import Contact, Material, MeshSpec, Scenario, TimeSpec
+from frictionbench.scenarios.spec import Contact, Material, MeshSpec, Scenario, TimeSpec
 from frictionbench.solvers import newton_vbd, registry
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver
 from frictionbench.solvers.full.static import static_equilibrium
-from frictionbench.solvers.model import build_model, initial_state
+from frictionbench.solvers.model import State
 from frictionbench.solvers.newton_vbd import NewtonVBD, newton_damping, newton_material, newton_model
 from frictionbench.solvers.physics.material import elastic_gradient, shape_matrices, snh_parameters
 from frictionbench.solvers.physics.viscosity import viscous_gradient
-from frictionbench.solvers.scene import State
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.warp_runtime import init_warp
 from scenes import G, com_series, free_flight, incline

@@ -22,7 +22,7 @@ from frictionbench.analysis.table import write_results_csv
 from frictionbench.bench.gates import OUTCOME_UNCERTIFIED, check, load_gates
 from frictionbench.bench.runner import StoreRuns, Task
 from frictionbench.scenarios.meshes import TetMesh, boundary_triangles
-from frictionbench.scenarios.model import Contact, Material, Plane, Scenario, TimeSpec
+from frictionbench.scenarios.spec import Contact, Material, Plane, Scenario, TimeSpec
 from frictionbench.scenarios.suites import Suite, SuiteMember
 from frictionbench.solvers.integrators import BackwardEuler
 from frictionbench.solvers.trajectory import Trajectory

@@ -9,17 +9,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import affine_basis, full_basis, pod_basis, smooth_basis
+from frictionbench.scenarios.spec import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.build import build_model, initial_state, rotation_matrix
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.licrom import kernels as K
-from frictionbench.solvers.licrom.cubature import cubature_force_error, optimized_cubature, uniform_cubature
-from frictionbench.solvers.licrom.plugins import Affine
-from frictionbench.solvers.licrom.reduced import ReducedModel, ReducedSolver
-from frictionbench.solvers.model import build_model, initial_state, rotation_matrix
 from frictionbench.solvers.physics import contact as pc
 from frictionbench.solvers.physics import friction as pf
 from frictionbench.solvers.physics import material as pm
+from frictionbench.solvers.reduced import kernels as K
+from frictionbench.solvers.reduced.bases import affine_basis, full_basis, pod_basis, smooth_basis
+from frictionbench.solvers.reduced.cubature import cubature_force_error, optimized_cubature, uniform_cubature
+from frictionbench.solvers.reduced.pod import Affine
+from frictionbench.solvers.reduced.solver import Subspace, ReducedSolver
 from frictionbench.solvers.simulate import simulate
 
 from scenes import G, com_series, free_flight, incline
@@ -119,7 +119,7 @@ def test_pull_back_of_hessian_factors_is_that_of_their_hessians(block, dense, ro
     rng = np.random.default_rng(1)
     ids = np.sort(rng.choice(model.tets.shape[0], 30, replace=False))
     w = rng.uniform(0.0, 3.0, 30)
-    rm = ReducedModel.build(model, W, (ids, w))
+    rm = Subspace.build(model, W, (ids, w))
     assert (rm.B_sparse is None) == dense
     factors = [rng.standard_normal((30, k, 9)) for k in rows]
     P = rng.standard_normal((30, 3, 3))
@@ -134,7 +134,7 @@ def test_pull_back_of_hessian_factors_is_that_of_their_hessians(block, dense, ro
     assert rm.pull_back(None, None) == rm.pull_back(None, []) == (None, None)
     # the dense products in single precision: the Hessian to single's round-off, exactly symmetric, in double; the
     # gradient in double as before (the sparse products stay in double)
-    single = ReducedModel.build(model, W, (ids, w), hessian="single")
+    single = Subspace.build(model, W, (ids, w), hessian="single")
     g32, H32 = single.pull_back(P, factors)
     assert H32.dtype == np.float64 and np.array_equal(H32, H32.T) and np.array_equal(g32, g)
     if dense:
@@ -147,14 +147,14 @@ def test_cubature_weights_and_ids_are_checked(block):
     model = build_model(Scenario(name="rest", mesh=MeshSpec("block", "coarse"), plane=None), block)
     W = smooth_basis(model.X, 12, 0.01 * model.L)
     with pytest.raises(ValueError, match=r"cubature weight -0\.5 at tet 1: weights must be finite and >= 0"):
-        ReducedModel.build(model, W, (np.array([0, 1]), np.array([1.0, -0.5])))
+        Subspace.build(model, W, (np.array([0, 1]), np.array([1.0, -0.5])))
     with pytest.raises(ValueError, match="cubature weight nan at tet 7"):
-        ReducedModel.build(model, W, (np.array([3, 7]), np.array([1.0, np.nan])))
+        Subspace.build(model, W, (np.array([3, 7]), np.array([1.0, np.nan])))
     m = model.tets.shape[0]
     with pytest.raises(ValueError, match=rf"cubature: 1 tet ids and 1 weights; .* in \[0, {m}\)"):
-        ReducedModel.build(model, W, (np.array([m]), np.array([1.0])))
+        Subspace.build(model, W, (np.array([m]), np.array([1.0])))
     with pytest.raises(ValueError, match="cubature: 2 tet ids and 1 weights"):
-        ReducedModel.build(model, W, (np.array([0, 1]), np.array([1.0])))
+        Subspace.build(model, W, (np.array([0, 1]), np.array([1.0])))
 
 
 # ----- the complete basis is the full-space solver ------------------------------------------------------------
@@ -298,7 +298,7 @@ def test_bases_represent_what_they_promise(block):
     X, n = model.X, model.n
     u_rigid = (X - X.mean(0)) @ rotation_matrix((20.0, 35.0, -50.0)).T + X.mean(0) + [0.1, -0.2, 0.3] - X
     A = affine_basis(X)
-    rm = ReducedModel.build(model, A)
+    rm = Subspace.build(model, A)
     assert np.abs(rm.decode(rm.project(u_rigid)) - u_rigid).max() < 1e-12 * model.L
     assert np.array_equal(full_basis(n).reshape(3 * n, 3 * n), np.eye(3 * n))
     frames = np.einsum("nak,fk->fna", smooth_basis(X, 20, 0.01), np.random.default_rng(2).standard_normal((30, 20)))
@@ -306,10 +306,10 @@ def test_bases_represent_what_they_promise(block):
         W = pod_basis(frames, 20, model.mass, affine_X=affine_X)
         Wf = W.reshape(-1, 20)
         assert np.abs(Wf.T @ (np.repeat(model.mass, 3)[:, None] * Wf) - np.eye(20)).max() < 1e-10
-        rm = ReducedModel.build(model, W)
+        rm = Subspace.build(model, W)
         assert np.abs(rm.decode(rm.project(frames[7])) - frames[7]).max() < 1e-10 * np.abs(frames[7]).max()
     W = pod_basis(frames, 12, model.mass, affine_X=X)
-    rm = ReducedModel.build(model, W)
+    rm = Subspace.build(model, W)
     assert np.abs(rm.decode(rm.project(u_rigid)) - u_rigid).max() < 1e-12 * model.L
 
 
@@ -335,9 +335,9 @@ def test_the_step_norm_bounds_decide_as_the_exact_norm(block):
     sc = candidate_scene("penalty_damped")
     model = build_model(sc, block)
     W = smooth_basis(model.X, 24, 0.002 * model.L)
-    rm = ReducedModel.build(model, W)
+    rm = Subspace.build(model, W)
     Wf, rng = rm.W.reshape(-1, rm.r), np.random.default_rng(3)
-    for dq in rng.standard_normal((50, rm.r)):  # the bounds' contract (`ReducedModel`)
+    for dq in rng.standard_normal((50, rm.r)):  # the bounds' contract (`Subspace`)
         exact = np.abs(Wf @ dq).max()
         assert np.abs(rm.W_extreme @ dq).max() <= exact <= max(np.abs(rm.W_extreme @ dq).max(),
                                                                 rm.W_rest_norm * np.linalg.norm(dq))
@@ -468,7 +468,7 @@ def test_point_terms_vanish_outside_the_candidates(block, kind, mu):
     model = build_model(candidate_scene(kind, mu), block)
     solver = ReducedSolver(model, smooth_basis(model.X, 24, 0.002 * model.L), contact_candidates=True)
     traj, _ = simulate_reduced(model, solver)
-    from frictionbench.solvers.licrom.reduced import ReducedState
+    from frictionbench.solvers.reduced.solver import ReducedState
 
     rm, rng = solver.reduced, np.random.default_rng(4)
     st = solver._begin(ReducedState(traj.q[-2], rm.project(traj.v[-2]), traj.t[-2]), 0.01)
@@ -494,7 +494,7 @@ def test_the_lag_near_the_plane_is_the_lag_at_every_point(block, kind, lag):
     """With the candidates on, a step's lag (friction's pressure, the contact-damping gate, the terms' lagged
     support) is computed at the points near the plane at the start or at the lag alone (`_lag_points`): it equals
     the lag computed at every sample point, to round-off, and leaves most points out."""
-    from frictionbench.solvers.licrom.reduced import ReducedState
+    from frictionbench.solvers.reduced.solver import ReducedState
 
     sc = candidate_scene(kind, 0.3)
     model = build_model(replace(sc, contact=replace(sc.contact, lag=lag)), block)
@@ -520,8 +520,8 @@ def test_point_kernels_match_the_numpy_terms(block, kind):
     """The reduced solver's point evaluation (the full-space warp kernels on its buffers) equals the sum of the
     terms' numpy `at_points` to round-off, at every order, on all sample points, on the candidates, and on none; a
     term without a kernel is evaluated by its numpy reference."""
-    from frictionbench.solvers.licrom.reduced import ReducedState, _PointSet
-    from frictionbench.solvers.licrom.terms import KernelLaunch, PointEvaluations, ReferencePointLaunch
+    from frictionbench.solvers.reduced.solver import ReducedState, _PointSet
+    from frictionbench.solvers.reduced.terms import KernelLaunch, PointEvaluations, ReferencePointLaunch
 
     model = build_model(candidate_scene(kind, 0.3), block)
     solver = ReducedSolver(model, smooth_basis(model.X, 24, 0.002 * model.L), contact_candidates=True)

@@ -11,10 +11,11 @@ import pytest
 
 from frictionbench.bench.cli import main, resolve_scenario
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.scenarios.model import MeshSpec
-from frictionbench.solvers.licrom.plugins import Licrom, Pod
+from frictionbench.scenarios.spec import MeshSpec
+from frictionbench.solvers.build import build_model, initial_state
+from frictionbench.solvers.licrom.plugin import Licrom
 from frictionbench.solvers.licrom.train import CheckpointError
-from frictionbench.solvers.model import build_model, initial_state
+from frictionbench.solvers.reduced.pod import Pod
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.trajectory import Trajectory
 

@@ -14,7 +14,7 @@ from frictionbench.analysis.metrics import error_over_time
 from frictionbench.bench.runner import run_suite
 from frictionbench.reports.browser_check import CHROMIUM_ARGS, PLOT_TIMEOUT_MS, check_report, require_chromium
 from frictionbench.reports.html import ScenarioRuns, write_report_html
-from frictionbench.scenarios.model import Plane
+from frictionbench.scenarios.spec import Plane
 from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml

@@ -36,7 +36,7 @@ from frictionbench.reports.interactive import plot_div, plotly_js, script_json, 
 from frictionbench.reports.plots import FAMILY_RAMPS, frontier_figure, pareto_front
 from frictionbench.reports.viewer import ViewerBudget, decimate_surface, viewer_figure
 from frictionbench.scenarios.meshes import bbox_diagonal
-from frictionbench.scenarios.model import Material, Plane
+from frictionbench.scenarios.spec import Material, Plane
 from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml

@@ -155,7 +155,7 @@ def test_transfer_reproduces_a_linear_field_exactly(block):
 
     from frictionbench.analysis.transfer import transfer_to_mesh
     from frictionbench.scenarios.meshes import load_mesh
-    from frictionbench.scenarios.model import MeshSpec
+    from frictionbench.scenarios.spec import MeshSpec
     from frictionbench.solvers.trajectory import Trajectory
 
     other = load_mesh(MeshSpec("block", "coarse_alt"))

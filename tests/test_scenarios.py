@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from frictionbench.scenarios import load
 from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import load_scenario, scenario_from_dict, scenario_hash, scenario_to_dict
-from frictionbench.scenarios.model import Effects
+from frictionbench.scenarios.spec import Effects
 from frictionbench.scenarios.suites import list_suites, load_suite, suite_from_dict
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml

@@ -19,7 +19,7 @@ from frictionbench.bench.compare import compare_results, default_rules
 from frictionbench.bench.runner import StoreRuns, Task, Variant
 from frictionbench.reports.headline import headline_table
 from frictionbench.reports.html import write_report_html
-from frictionbench.scenarios.model import Effects, Scenario
+from frictionbench.scenarios.spec import Effects, Scenario
 from frictionbench.scenarios.suites import Suite, SuiteMember
 from frictionbench.solvers.trajectory import Trajectory
 

@@ -1,7 +1,7 @@
 """Physics terms as objects (solvers.physics.terms): each term's numpy reference is consistent (gradient and
 Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, the step hooks
 (`begin_step`, `max_step`) give what the solvers used to compute by name, and a term registered from a test with its
-backends' evaluations (`solvers.full.terms`, `solvers.licrom.terms`) is picked up by every solver;
+backends' evaluations (`solvers.full.terms`, `solvers.reduced.terms`) is picked up by every solver;
 one with only a full-space launcher runs in the reduced solver from its numpy reference."""
 
 from __future__ import annotations
@@ -12,18 +12,19 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from frictionbench.scenarios.model import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import affine_basis, full_basis
+from frictionbench.scenarios.spec import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full import terms as FT
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.licrom import terms as LT
-from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep
-from frictionbench.solvers.model import Model, build_model, initial_state
-from frictionbench.solvers.newton import feasible_step
+from frictionbench.solvers.model import Model
+from frictionbench.solvers.newton_method import feasible_step
 from frictionbench.solvers.physics import terms as T
 from frictionbench.solvers.physics.contact import lagged_pressure
 from frictionbench.solvers.physics.inertia import Gravity, Inertia
 from frictionbench.solvers.physics.material import Elasticity
+from frictionbench.solvers.reduced import terms as LT
+from frictionbench.solvers.reduced.bases import affine_basis, full_basis
+from frictionbench.solvers.reduced.solver import ReducedSolver, ReducedStep
 from frictionbench.solvers.simulate import simulate
 
 from scenes import G, incline

@@ -19,15 +19,15 @@ from frictionbench.bench.runner import StoreRuns, Task
 from frictionbench.reports.html import write_report_html
 from frictionbench.scenarios.meshes import TetMesh, load_mesh, make_mesh
 from frictionbench.scenarios.meshgen import structured_box
-from frictionbench.scenarios.model import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
+from frictionbench.scenarios.spec import Contact, Effects, Initial, Material, MeshSpec, Plane, Scenario, TimeSpec
 from frictionbench.scenarios.suites import Suite, SuiteMember
 from frictionbench.solvers import linalg
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.model import build_model, initial_state
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics import timescales as ts
 from frictionbench.solvers.physics.contact import barrier_d1, barrier_d2
 from frictionbench.solvers.physics.material import rest_stiffness
-from frictionbench.solvers.scene import Model
 from frictionbench.solvers.simulate import simulate
 from frictionbench.solvers.trajectory import Trajectory
 

@@ -86,7 +86,7 @@ def test_registering_a_non_solver_fails_clearly():
 
 
 def test_a_scene_whose_integrator_the_solver_lacks_is_skipped_with_the_reason(ballistic):
-    from frictionbench.scenarios.model import MeshSpec, Scenario, TimeSpec
+    from frictionbench.scenarios.spec import MeshSpec, Scenario, TimeSpec
     from frictionbench.solvers.run import Skipped, run_scenario
 
     sc = Scenario(name="fall", mesh=MeshSpec("block", "coarse"), plane=None,

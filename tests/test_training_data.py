@@ -15,7 +15,8 @@ from frictionbench.bench.runner import Task, Variant, run_suite
 from frictionbench.bench.store import RunStore
 from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, training_runs
 from frictionbench.scenarios.suites import load_suite
-from frictionbench.solvers.licrom.plugins import Pod, _key
+from frictionbench.solvers.reduced.plugin import artefact_key
+from frictionbench.solvers.reduced.pod import Pod
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
 
@@ -58,7 +59,7 @@ def test_a_reference_trained_variant_trains_on_the_references_under_the_key_it_a
     paths, extra = runs.calls[0]
     assert paths == [ref_path]
     # the cache key as it was made before the training-data choice: shape, rank, affine, the reference's path
-    key = _key("pod", {"shape": "block", "r": 4, "affine": False, "data": [str(ref_path)]})
+    key = artefact_key("pod", {"shape": "block", "r": 4, "affine": False, "data": [str(ref_path)]})
     assert extra["basis"] == str(runs.out / "models" / key / "basis.npz")
     assert REF.training == "reference"
     row = runs.with_truth[runs.with_truth["variant"] == "r4"]

@@ -14,17 +14,18 @@ from frictionbench.scenarios.errors import ScenarioError
 from frictionbench.scenarios.load import scenario_from_dict, scenario_hash, scenario_to_dict
 from frictionbench.scenarios.meshes import TetMesh, load_mesh, make_mesh
 from frictionbench.scenarios.meshgen import structured_box
-from frictionbench.scenarios.model import Initial, Material, MeshSpec, Scenario, TimeSpec
-from frictionbench.solvers.baselines import affine_basis, full_basis
+from frictionbench.scenarios.spec import Initial, Material, MeshSpec, Scenario, TimeSpec
 from frictionbench.solvers import kernels as K
+from frictionbench.solvers.build import build_model, initial_state, rotation_matrix
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.licrom import kernels as RK
-from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedState
-from frictionbench.solvers.licrom.terms import CubatureEvaluation
-from frictionbench.solvers.model import Model, build_model, initial_state, rotation_matrix
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics import material as pm
 from frictionbench.solvers.physics import terms as T
 from frictionbench.solvers.physics import viscosity as pv
+from frictionbench.solvers.reduced import kernels as RK
+from frictionbench.solvers.reduced.bases import affine_basis, full_basis
+from frictionbench.solvers.reduced.solver import ReducedSolver, ReducedState
+from frictionbench.solvers.reduced.terms import CubatureEvaluation
 from frictionbench.solvers.run import run_scenario
 from frictionbench.solvers.simulate import simulate
 

@@ -6,7 +6,7 @@ integrator (the model's, e.g. BDF2) h is its effective step h_eff (2/3 dt for BD
 (`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`), each by
 its launcher (`solvers.full.terms`); an absent term launches no kernel. Newton directions come from the projected
 (PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E, in the
-shared loop of `solvers.newton`; the terms' feasible-step rule (`solvers.step`) caps the step (the barrier law: no
+shared loop of `solvers.newton_method`; the terms' feasible-step rule (`solvers.step`) caps the step (the barrier law: no
 contact point crosses the plane). Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the
 rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
 """
@@ -27,7 +27,7 @@ from frictionbench.solvers.full.terms import LAUNCHERS
 from frictionbench.solvers.integrators import Lagged
 from frictionbench.solvers.linalg import make_factoriser
 from frictionbench.solvers.model import Model, State
-from frictionbench.solvers.newton import Direction, LineSearch, NewtonResult, minimise
+from frictionbench.solvers.newton_method import Direction, LineSearch, NewtonResult, minimise
 from frictionbench.solvers.physics.terms import StepData, terms_of
 from frictionbench.solvers.step import ContactLag, StepProblem, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
@@ -43,7 +43,7 @@ class NewtonSettings:
     on the hard suite), and an attempt that runs out is retried as two half steps (`solvers.simulate`).
 
     chord: each Newton iteration but a step's first tests convergence first with the last factorisation (a
-    gradient and a back-substitution, `solvers.newton.minimise`): the iteration that ends a solve, a fixed point's
+    gradient and a back-substitution, `solvers.newton_method.minimise`): the iteration that ends a solve, a fixed point's
     re-lag above all, then costs no Hessian and no factorisation. Off by default (the references' settings);
     the truth ladders' `[truth] chord` turns it on.
 

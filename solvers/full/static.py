@@ -1,7 +1,7 @@
 """Static equilibrium with clamped vertices (verification: cantilever under self-weight).
 
 Minimises sum_e V_e Psi(F_e) - sum_i m_i g . x_i over the free vertices by the shared Newton loop
-(`solvers.newton`) with the full-space solver's kernels (projected Hessian, direct solve on the free degrees of
+(`solvers.newton_method`) with the full-space solver's kernels (projected Hessian, direct solve on the free degrees of
 freedom, Armijo backtracking).
 """
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from frictionbench.solvers.full.solver import FullSpaceSolver, _StepProblem
 from frictionbench.solvers.linalg import sparse_spd_solve
-from frictionbench.solvers.newton import Direction, minimise
+from frictionbench.solvers.newton_method import Direction, minimise
 
 
 class _StaticProblem(_StepProblem):

@@ -1,1 +1,2 @@
-"""LiCROM reduced-order solver: neural-field subspace training (torch), cubature, online dynamics (warp kernel)."""
+"""LiCROM: the neural-field subspace (`network`), its training (torch, `train`) and its solver (`plugin`), stepped by
+the reduced family's machinery (`solvers.reduced`)."""

@@ -5,7 +5,7 @@ Conventions (shared with `solvers.licrom.train` and the online solver):
   isotropic scale (so the shape keeps its aspect ratio and a rotation of X is a rotation of Xhat);
 - the basis W is dimensionless and the latent coordinates q carry metres: u [m] = W(X) q;
 - `r` is always the total number of basis columns. With `affine=True` the first 12 columns are the exact affine
-  fields `solvers.baselines.affine_fields(Xhat)` and the network supplies the remaining r - 12 (so r >= 13).
+  fields `solvers.reduced.bases.affine_fields(Xhat)` and the network supplies the remaining r - 12 (so r >= 13).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from frictionbench.solvers.baselines import N_AFFINE, affine_fields
+from frictionbench.solvers.reduced.bases import N_AFFINE, affine_fields
 
 
 

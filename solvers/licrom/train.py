@@ -35,10 +35,10 @@ from tqdm import tqdm
 
 from frictionbench.scenarios.atomic import atomic_open
 from frictionbench.scenarios.meshes import bbox_diagonal
-from frictionbench.solvers.baselines import N_AFFINE, project
 from frictionbench.solvers.licrom.network import NeuralField, PointNetEncoder, fit_affine
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_matrices
+from frictionbench.solvers.reduced.bases import N_AFFINE, project
 from frictionbench.solvers.trajectory import Trajectory
 
 log = logging.getLogger(__name__)

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from frictionbench.solvers.newton import feasible_step
+from frictionbench.solvers.model import Model
+from frictionbench.solvers.newton_method import feasible_step
 from frictionbench.solvers.physics.terms import Evaluation, PointTerm, register
-from frictionbench.solvers.scene import Model
 
 
 #: Penetration scale of the automatic penalty stiffness, as a fraction of the body size L.
@@ -212,7 +212,7 @@ class BarrierContact(PointTerm):
         return model.contact.barrier_distance
 
     def max_step(self, model: Model, x: np.ndarray, dx: np.ndarray) -> float:
-        """The barrier is infinite on the plane: no contact point may cross it (`solvers.newton.feasible_step`)."""
+        """The barrier is infinite on the plane: no contact point may cross it (`solvers.newton_method.feasible_step`)."""
         return feasible_step(signed_distance(x, model.plane_normal, model.plane_offset), dx @ model.plane_normal)
 
 

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.contact import lagged_pressure
 from frictionbench.solvers.physics.terms import Evaluation, PointTerm, register
-from frictionbench.solvers.scene import Model
 
 
 def f0(s: np.ndarray, eps_v: np.ndarray) -> np.ndarray:

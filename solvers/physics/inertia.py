@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.terms import BodyTerm, StepData, register
-from frictionbench.solvers.scene import Model
 
 
 def lumped_mass(vol: np.ndarray, tets: np.ndarray, n_vertices: int, density: float) -> np.ndarray:

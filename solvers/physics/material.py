@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.terms import BodyTerm, StepData, element_blocks, register
-from frictionbench.solvers.scene import Model
 
 
 def lame_parameters(youngs_modulus: float, poisson_ratio: float) -> tuple[float, float]:

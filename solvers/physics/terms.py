@@ -8,7 +8,7 @@ points: `begin_step` fixes what the term lags from the start of the step (fricti
 `max_step` caps a Newton step (the barrier law: no point may cross the plane; `max_feasible_step` is the one rule
 both solvers apply). A `PointTerm` (contact, damping, friction) is pure maths at any sample points (`at_points`).
 The physics knows no backend: each backend implements the evaluation of the terms in its own package, in a table
-keyed by the term's class (`solvers.full.terms` with the warp kernels, `solvers.licrom.terms` with the reduced
+keyed by the term's class (`solvers.full.terms` with the warp kernels, `solvers.reduced.terms` with the reduced
 evaluations of the body terms, its default the term's numpy reference; the reduced solver sums the point terms'
 `at_points` itself).
 `applies(model)` says whether a scene has a term; a solver takes `terms_of(model)` and loops over them. A term is
@@ -28,7 +28,7 @@ from typing import ClassVar, Generic, TypeVar
 import numpy as np
 import scipy.sparse as sp
 
-from frictionbench.solvers.scene import Model
+from frictionbench.solvers.model import Model
 
 
 #: Energy [J], gradient and Hessian of a term (None where not asked for).
@@ -100,7 +100,7 @@ class Term(ABC):
         positions at the start of the step and where the step lags contact both lie at least that far: its
         `begin_step` value and, for a point term, its `lagged_support`. -inf, it lags nothing (the default for a
         term that overrides neither); +inf (the default for any other), at any distance. It lets a backend compute
-        the lag at the points below it alone (`solvers.licrom.reduced`)."""
+        the lag at the points below it alone (`solvers.reduced.solver`)."""
         lags = type(self).begin_step is not Term.begin_step or (
             isinstance(self, PointTerm) and type(self).lagged_support is not PointTerm.lagged_support)
         return np.inf if lags else -np.inf
@@ -108,7 +108,7 @@ class Term(ABC):
 
 class BodyTerm(Term):
     """A term over the whole body (inertia, gravity, elasticity, viscosity): each backend evaluates it by its own
-    table (`solvers.full.terms`, `solvers.licrom.terms`: there by default from its numpy
+    table (`solvers.full.terms`, `solvers.reduced.terms`: there by default from its numpy
     reference)."""
 
 
@@ -125,7 +125,7 @@ class PointTerm(Term):
     def reach(self, model: Model) -> float:
         """The signed distance to the plane [m] below which the term can be nonzero at a point through the point's
         own position: -inf, never; +inf (the default), at any distance. With `lagged_support` it bounds the term's
-        support, which lets a backend evaluate it at the candidate points alone (`solvers.licrom.reduced`)."""
+        support, which lets a backend evaluate it at the candidate points alone (`solvers.reduced.solver`)."""
         return np.inf
 
     def lagged_support(self, model: Model, x_lag: np.ndarray, fn: np.ndarray | None) -> np.ndarray | None:

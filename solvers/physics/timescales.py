@@ -29,10 +29,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from frictionbench.solvers.linalg import negative_eigenvalues
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.contact import barrier_d1, barrier_d2, signed_distance
 from frictionbench.solvers.physics.material import rest_stiffness
 from frictionbench.solvers.physics.viscosity import first_mode
-from frictionbench.solvers.scene import Model
 
 #: Relative tolerance of the Lanczos estimate of omega_max^2 (the extreme eigenvalue converges in a few dozen
 #: iterations on these meshes).

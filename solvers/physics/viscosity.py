@@ -24,10 +24,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.material import (deformation_gradient, nodal_forces, project_psd, pulled_back,
                                                     rest_stiffness)
 from frictionbench.solvers.physics.terms import BodyTerm, StepData, element_blocks, register
-from frictionbench.solvers.scene import Model
 
 #: Eigenvalues within this relative distance of omega_1^2 belong to the first mode's eigenspace (a symmetric mesh
 #: has degenerate modes); a rigid mode's eigenvalue is below this fraction of omega_1^2.

@@ -12,11 +12,12 @@ import pytest
 
 from frictionbench.bench.cli import resolve_scenario
 from frictionbench.scenarios.meshes import load_mesh
-from frictionbench.solvers.baselines import affine_basis, mass_orthonormalise
+from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
-from frictionbench.solvers.licrom.cubature import uniform_cubature
-from frictionbench.solvers.licrom.reduced import ReducedSolver
-from frictionbench.solvers.model import State, build_model, initial_state
+from frictionbench.solvers.model import State
+from frictionbench.solvers.reduced.bases import affine_basis, mass_orthonormalise
+from frictionbench.solvers.reduced.cubature import uniform_cubature
+from frictionbench.solvers.reduced.solver import ReducedSolver
 
 
 @pytest.fixture(scope="module")

@@ -17,12 +17,13 @@ MAX_STEPS = 100_000
 #: An adaptive run's default smallest step, as a fraction of time.dt (`TimeSpec.min_step`).
 DT_MIN_FRACTION = 1.0 / 1024.0
 
-#: The names a scenario's `time.integrator` may take, in registration order. The integrators are classes of
-#: `solvers.integrators`, registered by name there (`solvers.integrators.register`), which hands each name down here
-#: (`register_integrator_name`): this bottom layer may not import solvers (pyproject.toml's layer contracts), so the
-#: loader validates against the names the classes give it rather than a second list that could disagree with them.
-#: Importing the package `frictionbench` (which any import of this module does first) registers the built-in ones.
-_INTEGRATOR_NAMES: list[str] = []
+#: The built-in integrators' names, the classes of `solvers.integrators` (a test checks that the two agree): this
+#: bottom layer may not import solvers (pyproject.toml's layer contracts), so the names are declared here, where the
+#: loader validates `time.integrator`, and nothing has to be imported first for them to be known.
+BUILTIN_INTEGRATORS: tuple[str, ...] = ("backward-euler", "bdf2")
+#: The names a scenario's `time.integrator` may take: the built-in ones, then those an extension registers
+#: (`solvers.integrators.register` calls `register_integrator_name`).
+_INTEGRATOR_NAMES: list[str] = list(BUILTIN_INTEGRATORS)
 
 
 def register_integrator_name(name: str) -> None:
@@ -32,7 +33,7 @@ def register_integrator_name(name: str) -> None:
 
 
 def integrator_names() -> tuple[str, ...]:
-    """The registered integrator names."""
+    """The accepted integrator names (`BUILTIN_INTEGRATORS`, then the registered ones)."""
     return tuple(_INTEGRATOR_NAMES)
 
 

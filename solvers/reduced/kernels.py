@@ -4,7 +4,7 @@ The reduced solver's hot path is the per-cubature-tet evaluation of the energy d
 Piola-Kirchhoff stress P(F) and the PSD-projected Hessian (dP/dF)_+ at deformation gradients F (c, 3, 3). One
 kernel does all three into one packed output array (its width selects how much), so that a call is one launch;
 the linear reductions with the constant jacobians B_c = dvec(F_c)/dq are dense matrix products left to BLAS
-(solvers/licrom/reduced.py). The Hessian leaves the kernel as a factor, (dP/dF)_+ = L^T L with L (9, 9) the modes
+(solvers/reduced/solver.py). The Hessian leaves the kernel as a factor, (dP/dF)_+ = L^T L with L (9, 9) the modes
 of positive weight as rows (sqrt(l_m) vec(Q_m)): writing the modes costs the kernel less than summing their outer
 products, and the reduction then needs one product (L_c B_c) per tet and one symmetric product (G^T G) instead of
 two general ones. The kernel shares the SNH functions of the full-space solver (solvers/kernels.py: the energy

@@ -15,7 +15,7 @@ W_p^T H_p W_p). Friction uses the normal pressure lagged from the start of the s
 
 Schemes:
 - "newton": Newton's method on the r-dimensional energy with the PSD-projected dense Hessian (Cholesky), run
-  by the shared loop of `solvers.newton` (Armijo backtracking with its round-off slack, and, for the barrier law,
+  by the shared loop of `solvers.newton_method` (Armijo backtracking with its round-off slack, and, for the barrier law,
   a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt).
   Converged when |W dq|_inf / h < tol * L over all mesh vertices (the full solver's measure; decoding dq costs
   one (3n x r) product).
@@ -51,16 +51,16 @@ import scipy.sparse as sp
 from scipy.linalg import cho_factor, cho_solve, eigh
 from scipy.linalg.lapack import dpotrf, dpotrs
 
-from frictionbench.solvers.baselines import project
-from frictionbench.solvers.licrom import kernels as K
-from frictionbench.solvers.licrom.cubature import Cubature, all_tets, deformation_jacobians
-from frictionbench.solvers.licrom.terms import EVALUATIONS, MODES, CubatureEvaluation, PointEvaluations
 from frictionbench.solvers.model import Model, State
-from frictionbench.solvers.newton import Direction, LineSearch, NewtonResult, minimise
+from frictionbench.solvers.newton_method import Direction, LineSearch, NewtonResult, minimise
 from frictionbench.solvers.physics.contact import signed_distance
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_gradients
 from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, terms_of
+from frictionbench.solvers.reduced import kernels as K
+from frictionbench.solvers.reduced.bases import project
+from frictionbench.solvers.reduced.cubature import Cubature, all_tets, deformation_jacobians
+from frictionbench.solvers.reduced.terms import EVALUATIONS, MODES, CubatureEvaluation, PointEvaluations
 from frictionbench.solvers.step import ContactLag, StepProblem, gate_positions, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
 
@@ -77,14 +77,14 @@ ROW_NORM_ALLOWANCE = 1e-12
 decides a step converged, the product over every row would have decided the same."""
 
 HESSIAN_PRECISIONS = {"double": np.float64, "single": np.float32}
-"""Precisions of the reduced Hessian's dense products B^T (w V H9) B (`ReducedModel.pull_back`; the solvers'
+"""Precisions of the reduced Hessian's dense products B^T (w V H9) B (`Subspace.pull_back`; the solvers'
 `hessian` parameter). The Hessian only sets Newton's direction; the energy and the gradient, which decide where a
 step stops, stay in double. In single the products take under half the time (half or more of an r = 84 step on
 210 tets), and a run's iterations and trajectory are double's to round-off (measured on the coarse sphere at r = 60
 and 84: the same iteration counts, positions within 1.1e-13 of L; experiments/figures.md)."""
 
 HESSIAN_REFRESHES = ("iteration", "step")
-"""When the body terms' Hessian (the cubature tets' elasticity and viscosity pulled back, `ReducedModel.pull_back`)
+"""When the body terms' Hessian (the cubature tets' elasticity and viscosity pulled back, `Subspace.pull_back`)
 is evaluated: at every Newton iteration (Newton's method), or at a step's first iteration only, kept for the
 step's other iterations and contact-lag solves (a modified Newton method; the solvers' `hessian_refresh`). The
 point terms' and the inertia's Hessians stay exact at every iteration, and the gradient, which decides where a
@@ -111,7 +111,7 @@ class ReducedState:
 
 
 @dataclass
-class ReducedModel:
+class Subspace:
     """Static data of the reduced problem (float64).
 
     W: (n, 3, r) basis at the mesh vertices [m per unit q]; M_r: (r, r) reduced mass [kg]; cub_ids: (c,) cubature
@@ -122,7 +122,7 @@ class ReducedModel:
     [m per unit q] the rows n^T W_p, so that phi_p(q) = phi_rest_p + N_p q (None without a plane); W_extreme
     (k, r) the EXTREME_ROWS rows of W (3n x r) with the largest norms, and W_rest_norm the largest Euclidean norm of
     the other rows (times 1 + ROW_NORM_ALLOWANCE), so that |W dq|_inf <= max(|W_extreme dq|_inf, W_rest_norm |dq|)
-    [m per unit q]; device: where the elastic kernel runs ("cpu" or "cuda", `solvers.licrom.kernels`);
+    [m per unit q]; device: where the elastic kernel runs ("cpu" or "cuda", `solvers.reduced.kernels`);
     B_hessian: B in the precision of the dense Hessian products (`HESSIAN_PRECISIONS`; None: B itself, double).
     """
 
@@ -149,7 +149,7 @@ class ReducedModel:
     @classmethod
     def build(cls, model: Model, W: np.ndarray, cubature: Cubature | None = None,
               contact_samples: int | None = None, seed: int = 0, device: str = "cpu",
-              hessian: str = "double") -> "ReducedModel":
+              hessian: str = "double") -> "Subspace":
         """Precompute everything for the basis W (n, 3, r) on `model`'s mesh.
 
         cubature: (tet ids, weights), None for every tet with weight 1. contact_samples: keep that many of the
@@ -316,7 +316,7 @@ class ReducedStep:
 
     def lagged_positions(self, model: Model, Xp: np.ndarray, Wp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """At sample points with rest positions Xp (k, 3) [m] and basis rows Wp (k, 3, r)
-        (`ReducedModel.point_rows`), the gate positions x_lag (`solvers.step.gate_positions` of the lag's, the earlier
+        (`Subspace.point_rows`), the gate positions x_lag (`solvers.step.gate_positions` of the lag's, the earlier
         lags' and the start's positions: what the point terms take as x_lag) and x_bar, (k, 3) [m] each."""
         x_start = _positions(Xp, Wp, self.q_prev)
         x_lag = x_start if self.q_lag is self.q_prev else _positions(Xp, Wp, self.q_lag)
@@ -339,7 +339,7 @@ class _PointSet:
     fn: np.ndarray | None
 
     @classmethod
-    def of(cls, rm: ReducedModel, st: ReducedStep, ids: np.ndarray | None) -> "_PointSet":
+    def of(cls, rm: Subspace, st: ReducedStep, ids: np.ndarray | None) -> "_PointSet":
         """The points ids (None: all) of `rm` with the step `st`'s lagged data."""
         Xp, Wp = rm.point_rows(ids)
         x_lag, x_bar = st.lagged_positions(rm.model, Xp, Wp)
@@ -376,7 +376,7 @@ class _SamplePoints:
         return out
 
     @classmethod
-    def build(cls, rm: ReducedModel) -> "_SamplePoints":
+    def build(cls, rm: Subspace) -> "_SamplePoints":
         """Sample points of the cubature of `rm`."""
         m = rm.model
         tets = m.tets[rm.cub_ids]
@@ -426,7 +426,7 @@ class ReducedSolver:
             raise ValueError(f"hessian_refresh = {hessian_refresh!r}: expected one of {list(HESSIAN_REFRESHES)}")
         self.fixed_iterations, self.velocity_scale = fixed_iterations, velocity_scale
         self.model = model
-        self.reduced = ReducedModel.build(model, W, cubature, contact_samples, seed, device, hessian)
+        self.reduced = Subspace.build(model, W, cubature, contact_samples, seed, device, hessian)
         self.scheme, self.tol, self.max_iter, self.alpha = scheme, tol, max_iter, alpha
         self.armijo, self.max_halvings = armijo, max_halvings
         self.hessian_refresh = hessian_refresh
@@ -523,7 +523,7 @@ class ReducedSolver:
         """The body terms' energy [J] and, to `order`, gradient (r,) [N] and PSD-projected Hessian (r, r) [N/m]
         (zeros below it), the energies summed in the terms' order. The terms at the cubature tets
         (`CubatureEvaluation`: elasticity, viscosity) share one F_c(q), and their stresses and Hessian factors are
-        summed per tet and pulled back once (`ReducedModel.pull_back`), after the others' reduced values; under
+        summed per tet and pulled back once (`Subspace.pull_back`), after the others' reduced values; under
         `hessian_refresh = "step"` their Hessian is the one kept from the step's first second-order evaluation
         (`HESSIAN_REFRESHES`)."""
         rm = self.reduced
@@ -638,7 +638,7 @@ class ReducedSolver:
         return st.q_prev + problem.max_step(st.q_prev, st.q_hat - st.q_prev) * (st.q_hat - st.q_prev)
 
     def _newton(self, st: ReducedStep, q0: np.ndarray | None = None, max_iter: int | None = None) -> NewtonResult:
-        """Minimise E by the shared Newton loop (`solvers.newton`) from q0 (None: `_initial_guess`), at most
+        """Minimise E by the shared Newton loop (`solvers.newton_method`) from q0 (None: `_initial_guess`), at most
         max_iter iterations (None: the solver's)."""
         problem = _StepProblem(self, st, self.tol * self.model.L)
         res = minimise(problem, self._initial_guess(st, problem) if q0 is None else q0, problem.tol_v,

@@ -1,5 +1,5 @@
 """The reduced backend's evaluation of the body terms (`solvers.physics.terms.BodyTerm`: inertia, gravity,
-elasticity, viscosity) in the latent coordinates of a `solvers.licrom.reduced.ReducedSolver`: one `BodyEvaluation`
+elasticity, viscosity) in the latent coordinates of a `solvers.reduced.solver.ReducedSolver`: one `BodyEvaluation`
 per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). A body term without an entry is
 evaluated from its numpy reference (`ReferenceEvaluation`, the table's default): exact, but a full-mesh evaluation
 per call; a dedicated evaluation makes it fast. A body term that is a density over the body (elasticity,
@@ -20,17 +20,17 @@ import numpy as np
 import warp as wp
 
 from frictionbench.solvers import kernels as shared
-from frictionbench.solvers.licrom import kernels as K
 from frictionbench.solvers.physics.contact import BarrierContact, ContactDamping, PenaltyContact
 from frictionbench.solvers.physics.friction import Friction
 from frictionbench.solvers.physics.inertia import Gravity, Inertia
 from frictionbench.solvers.physics.material import Elasticity
 from frictionbench.solvers.physics.terms import Evaluation, PointTerm, StepData, Term, TermTable
-from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
 from frictionbench.solvers.physics.viscosity import Viscosity
+from frictionbench.solvers.reduced import kernels as K
+from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
 
 if TYPE_CHECKING:
-    from frictionbench.solvers.licrom.reduced import ReducedSolver, ReducedStep, _PointSet
+    from frictionbench.solvers.reduced.solver import ReducedSolver, ReducedStep, _PointSet
 
 
 class BodyEvaluation(ABC):
@@ -89,7 +89,7 @@ class ReferenceEvaluation(BodyEvaluation):
 
 #: The reduced evaluation of each body term class (`EVALUATIONS.build(rs, body_terms)`: one per term; a term
 #: without one gets `ReferenceEvaluation`).
-EVALUATIONS: TermTable[BodyEvaluation] = TermTable("reduced evaluation (solvers.licrom.terms.EVALUATIONS)",
+EVALUATIONS: TermTable[BodyEvaluation] = TermTable("reduced evaluation (solvers.reduced.terms.EVALUATIONS)",
                                                    default=ReferenceEvaluation)
 
 
@@ -133,9 +133,9 @@ MODES = (K.ENERGY, K.STRESS, K.HESSIAN)
 
 
 class CubatureEvaluation(BodyEvaluation):
-    """A body term given per cubature tet by a kernel of `solvers.licrom.kernels` at the tets' deformation
+    """A body term given per cubature tet by a kernel of `solvers.reduced.kernels` at the tets' deformation
     gradients F_c(q) (`at_tets`). The solver sums the per-tet values of every such term of its scene at one F_c(q)
-    and pulls the sums back to the latent coordinates once (`ReducedSolver.evaluate`, `ReducedModel.pull_back`);
+    and pulls the sums back to the latent coordinates once (`ReducedSolver.evaluate`, `Subspace.pull_back`);
     `reduced` is the term alone."""
 
     @abstractmethod
@@ -145,7 +145,7 @@ class CubatureEvaluation(BodyEvaluation):
 
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
         """The cubature sum of this term alone: energy sum_c w_c V_c density_c, gradient and Hessian pulled back
-        (`ReducedModel.pull_back`)."""
+        (`Subspace.pull_back`)."""
         rm = self.rs.reduced
         density, P, L = self.at_tets(rm.deformation_gradients(q), st, MODES[order])
         return (float(rm.wV @ density),) + rm.pull_back(P, None if L is None else [L])
@@ -282,7 +282,7 @@ class KernelLaunch(PointLaunch):
 
 #: The point evaluation of each point term class (`POINT_LAUNCHES.build(points, point_terms)`; a term without one
 #: gets `ReferencePointLaunch`).
-POINT_LAUNCHES: TermTable[PointLaunch] = TermTable("reduced point launch (solvers.licrom.terms.POINT_LAUNCHES)",
+POINT_LAUNCHES: TermTable[PointLaunch] = TermTable("reduced point launch (solvers.reduced.terms.POINT_LAUNCHES)",
                                                    default=ReferencePointLaunch)
 
 
