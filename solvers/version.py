@@ -13,6 +13,8 @@ this constant, when the guarded run moves and the version did not change).
 from __future__ import annotations
 
 #: Bump on any change that moves a trajectory (see the module docstring).
-PHYSICS_VERSION: int = 2
+PHYSICS_VERSION: int = 3
 # 2: the fixed-point contact lag's damping gate is monotone within a step and each re-lag takes one Newton
 #    iteration (solvers.step.ContactLag); fixed-point runs move, start-lag runs do not.
+# 3: modified Newton's contraction test starts afresh at each re-lag of the fixed-point contact lag
+#    (solvers.full.solver._LaggedStep.relag); runs with chord_contraction and the fixed point move, others do not.

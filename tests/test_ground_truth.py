@@ -106,6 +106,35 @@ def test_the_chord_test_and_modified_newton_factorise_less_and_meet_the_same_tol
         assert 0.0 < drift < 4 * params["tol"] * sc.time.dt  # four steps' velocity errors of at most tol L each
 
 
+def test_each_re_lag_starts_modified_newtons_contraction_test_afresh(monkeypatch):
+    """Under the fixed-point lag a re-lag poses another problem: the first solve after it judges its chord step
+    against no earlier step (residual inf), while a step's first solve does too and a solve that goes on under the
+    same lag keeps its reference."""
+    from frictionbench.bench.benchmark_step import mid_contact_state, truth_scenario
+    from frictionbench.scenarios.meshes import load_mesh
+    from frictionbench.solvers.build import build_model
+    from frictionbench.solvers.full import solver as full
+    from frictionbench.solvers.model import State
+
+    sc, params = truth_scenario("quick/p1_mu0.5", 2)
+    model = build_model(sc, load_mesh(sc.mesh))
+    state, _, _ = mid_contact_state(model, 1)
+    events = []
+    relag, minimise = full._LaggedStep.relag, full.minimise
+    monkeypatch.setattr(full._LaggedStep, "relag", lambda self, *a: (events.append("relag"), relag(self, *a))[1])
+    monkeypatch.setattr(full, "minimise", lambda *a: (events.append(a[-1]), minimise(*a))[1])
+    solver = full.FullSpaceSolver(model, settings=full.NewtonSettings(linear="superlu", **params))
+    assert params["chord_contraction"] > 0 and sc.contact.lag == "fixed-point"
+    for _ in range(3):
+        out = State(state.x, state.v, state.t)
+        solver.step(state, out, sc.time.dt)
+        state = out
+    after_relag = [b for a, b in zip(events, events[1:]) if a == "relag" and b != "relag"]
+    assert len(after_relag) > 3 and all(r == np.inf for r in after_relag)
+    carried = [b for a, b in zip(events, events[1:]) if a != "relag" and b != "relag"]
+    assert all(np.isfinite(r) for r in carried)
+
+
 def test_bad_truth_flags_exit_2_before_any_work(tmp_path: Path, capsys):
     suite = write_toml(tmp_path / "ladder.toml", SUITE)
     out = tmp_path / "out"
@@ -327,11 +356,11 @@ def test_paper_damped_is_the_papers_matrix_with_material_damping():
         assert b.scenario.material.damping_ratio == 0.05 and b.scenario.effects.viscosity
         assert b.scenario.plane == a.scenario.plane and b.scenario.mesh == a.scenario.mesh
     # the same ladder, under the fixed-point contact lag (friction's start-lagged pressure stalls a damped ladder),
-    # stepped as quick's truth is (modified Newton at Newton's tolerance 1e-4 L/s)
+    # stepped as quick's truth is (modified Newton at Newton's tolerance 1e-4 L/s), at a contraction of its own
     quick = load_suite("quick").truth
     assert damped.truth == replace(paper.truth, contact_lag="fixed-point", newton_tol=quick.newton_tol,
-                                   chord=quick.chord, chord_contraction=quick.chord_contraction)
-    assert paper.truth.contact_lag == "start" and quick.chord_contraction > 0
+                                   chord=quick.chord, chord_contraction=damped.truth.chord_contraction)
+    assert paper.truth.contact_lag == "start" and damped.truth.chord_contraction >= quick.chord_contraction > 0
 
 
 def test_quick_is_quick_undamped_with_paper_dampeds_damping_and_truth_lag():
