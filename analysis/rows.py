@@ -12,13 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Protocol
 
 from tqdm import tqdm
 
 from frictionbench.analysis.curves import with_curve_floors
 from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
 from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
+from frictionbench.analysis.records import LadderRuns, RunRecord, RunTask, Trajectories
 from frictionbench.analysis.outcomes import ladder_outcome_columns, outcome_cells, outcome_scene, outcome_values
 from frictionbench.analysis.schema import computed
 from frictionbench.analysis.timescales import SceneTimescales, scene_columns
@@ -26,49 +26,10 @@ from frictionbench.analysis.transfer import transfer_to_mesh
 from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, level_ratio,
                                           wall_s_per_sim_s, with_frontier)
 from frictionbench.scenarios.meshes import bbox_diagonal
-from frictionbench.scenarios.spec import MeshSpec, Scenario
-from frictionbench.scenarios.suites import Suite, SuiteMember, TruthSpec
+from frictionbench.scenarios.spec import Scenario
+from frictionbench.scenarios.suites import Suite, TruthSpec
 from frictionbench.solvers.integrators import get_integrator
 from frictionbench.solvers.trajectory import Trajectory
-
-
-class RunTask(Protocol):
-    """One run of the harness (`bench.runner.Task`): its scenario, solver, mesh (None: the scenario's) and store
-    key."""
-
-    scenario: Scenario
-    solver: str
-    mesh: MeshSpec | None
-
-    @property
-    def key(self) -> str: ...
-
-
-class LadderRuns(Protocol):
-    """A member's truth ladder with one integrator (`bench.runner.Ladder`): its finished runs level by level, the
-    differences d_k between successive levels [fraction of L], whether a run failed, and the per-frame difference
-    (t (F,) [s], d (F,) [fraction of L]) of its last two levels."""
-
-    integrator: str
-    tasks: Sequence[RunTask]
-    differences: Sequence[float]
-    failed: bool
-    frame_differences: tuple | None
-
-
-class Runs(Protocol):
-    """What row building reads from the harness: stored runs by key, the variants that apply to a member (with
-    their parameters, or in their place the reason where the variant has none for the member's shape, e.g. no
-    trained model), a variant's run on a member (or why it has none), and the store key of the reference solver's
-    run of a scenario on a mesh."""
-
-    def load(self, key: str) -> tuple[Trajectory | None, dict]: ...
-
-    def member_variants(self, member: SuiteMember) -> list[tuple[object, dict | str]]: ...
-
-    def task(self, variant: object, member: SuiteMember, params: dict) -> RunTask | str: ...
-
-    def key(self, scenario: Scenario, solver: str, mesh: MeshSpec | None) -> str: ...
 
 
 def ladder_label(integrator: str, k: int, kind: str = "step") -> str:
@@ -96,7 +57,7 @@ def truth_columns(ladders: Mapping[str, LadderRuns], spec_tol: float, kind: str 
             | ({"truth_tol": finest.scenario.time.tol} if kind == "tolerance" else {}), est, finest)
 
 
-def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
+def collect_rows(suite: Suite, refs: Mapping[str, RunTask], records: Sequence[RunRecord], runs: Trajectories,
                  ladders: Mapping[str, Mapping[str, LadderRuns]] | None = None, truth: TruthSpec | None = None
                  ) -> list[dict]:
     """One results row per (member, variant) plus one per reference and one per ladder run: identity, metrics,
@@ -107,14 +68,18 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
     (against that run: the reduction's share) and, with a subspace, err_projection (the truth projected onto it: the
     basis's share). Every finished run's row also gets its outcome values (`analysis.outcomes`) and, with a truth,
     their errors against the truth's and each outcome's convergence over the truth's ladder. `refs` are the members'
-    reference runs by scenario name; `runs` gives the stored runs and the variants of each member (the harness's
-    `bench.runner.StoreRuns`). Every row of a scenario whose reference ran gets the scene's time scales on the
+    reference runs by scenario name, `records` the variants' runs as the harness resolved them
+    (`analysis.records.RunRecord`, from `bench.runner.run_records`), in row order, and `runs` the stored runs by key
+    (`bench.store.RunStore`). Every row of a scenario whose reference ran gets the scene's time scales on the
     reference's mesh with the patch of its last frame and its own step's resolution of them (`analysis.timescales`:
-    computed once per mesh, material and step). A variant on a step ladder of its own (`bench.matrix.step_ladder`)
-    gives its rows its curve's columns (`curve_cells`), and the finest finished row of each curve its floor
+    computed once per mesh, material and step). A variant's `tags` are its rows' cells as they are: a point of a curve
+    (`bench.matrix.step_ladder`) gives its curve's, and the finest finished row of each curve its floor
     (`analysis.curves.with_curve_floors`)."""
     rows = []
     timescales = SceneTimescales()
+    by_member: dict[str, list[RunRecord]] = {}
+    for rec in records:
+        by_member.setdefault(rec.member, []).append(rec)
     for m in tqdm(suite.scenarios, desc="metrics", unit="scenario"):
         sc = m.scenario
         ref_task = refs[sc.name]
@@ -200,57 +165,35 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], runs: Runs,
                                     "integrator": integrator}
                             | run_timing(stats, ref_stats, task.scenario.time.dt) | run_metrics(ref, traj, sc, stats)
                             | err_truth(traj) | outcomes(traj, task.key))
-        for v, params in runs.member_variants(m):
-            label = v.label or v.solver
-            curve = curve_cells(v)
-            if isinstance(params, str):
-                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": params}
-                            | curve)
+        for rec in by_member.get(sc.name, ()):
+            ident = {"solver": rec.solver, "variant": rec.variant}
+            if rec.key is None:
+                rows.append(base | ident | {"status": "failed", "failure": rec.failure} | rec.tags)
                 continue
-            task = runs.task(v, m, params)
-            if isinstance(task, str):
-                rows.append(base | {"solver": v.solver, "variant": label, "status": "failed", "failure": task} | curve)
-                continue
-            mesh = task.mesh
-            traj, stats = runs.load(task.key)
+            task_sc = rec.scenario
+            traj, stats = runs.load(rec.key)
             # metrics against the full-space run on the same mesh (the other mesh's own reference when remeshed),
             # or against the reference itself after carrying the trajectory onto its mesh (`transfer`)
-            if mesh is None or v.transfer:
+            if rec.compare_key == ref_task.key:
                 v_ref, v_ref_stats = ref, ref_stats
-                if mesh is not None and traj is not None:
+                if rec.transfer and traj is not None:
                     traj = transfer_to_mesh(traj, ref)
             else:
-                v_ref, v_ref_stats = runs.load(runs.key(sc, ref_task.solver, mesh))
-            row = base | {"solver": v.solver, "variant": label, "run": task.key, "remesh": v.remesh or "",
-                          "r": params.get("r"), "mesh": (mesh or sc.mesh).key, "model": v.model or label,
-                          "remesh_of": (v.remesh_of or v.model or label) if v.remesh else "",
-                          "dt": task.scenario.time.dt, "integrator": task.scenario.time.integrator,
-                          "train_mesh": sc.mesh.key if "shape" in params else "",
-                          "train_data": getattr(v, "training", "reference") if "shape" in params else "",
-                          "law": task.scenario.contact.law} | curve
-            metrics = run_metrics(v_ref, traj, task.scenario, stats)
-            other_mesh = mesh is not None and not v.transfer
-            here = on_truth_mesh(traj, other_mesh) if metrics["status"] == "ok" else None
-            truth_err = (err_truth(here) | error_parts(traj, v_ref, other_mesh)
-                         | outcomes(here, None, (task.scenario, stats.get("contact_stiffness")))
+                v_ref, v_ref_stats = runs.load(rec.compare_key)
+            row = (base | ident | {"run": rec.key} | rec.columns
+                   | {"dt": task_sc.time.dt, "integrator": task_sc.time.integrator, "law": task_sc.contact.law}
+                   | rec.tags)
+            metrics = run_metrics(v_ref, traj, task_sc, stats)
+            here = on_truth_mesh(traj, rec.other_mesh) if metrics["status"] == "ok" else None
+            truth_err = (err_truth(here) | error_parts(traj, v_ref, rec.other_mesh)
+                         | outcomes(here, None, (task_sc, stats.get("contact_stiffness")))
                          if here is not None else {})
-            rows.append(row | run_timing(stats, v_ref_stats, task.scenario.time.dt) | metrics | truth_err)
+            rows.append(row | run_timing(stats, v_ref_stats, task_sc.time.dt) | metrics | truth_err)
         if scales is not None:  # each run's step against the scene's time scales
             for row in rows[first:]:
                 if row.get("dt") is not None:  # an adaptive run: at its median step
                     row |= timescales.resolution(scales, row["integrator"], row.get("dt_median") or row["dt"])
     return with_curve_floors(with_frontier(with_ref_dt_change(with_remesh_ratio(rows))))
-
-
-def curve_cells(variant: object) -> dict:
-    """The curve columns of a variant's rows (`bench.runner.Variant.curve`, set by `bench.matrix.step_ladder`):
-    `curve`, `curve_level` and, where it has one, `curve_twin`; none for a variant on no curve."""
-    curve = getattr(variant, "curve", "")
-    if not curve:
-        return {}
-    twin = getattr(variant, "curve_twin", "")
-    return ({"curve": curve, "curve_level": getattr(variant, "curve_level", None)}
-            | ({"curve_twin": twin} if twin else {}))
 
 
 #: The columns of an adaptive run (`solvers.step_stats.stats_summary`, `solvers.run.run_scenario`), on its rows only.

@@ -311,12 +311,12 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("ladder_level", "parameter", unit="count", meaning="on a truth-ladder row: its level k (dt / 2^k)",
            source=_ROWS),
     Column("curve", "parameter", unit="text", meaning="on a row of a variant's own step ladder: its curve (base "
-           "label, and the integrator the ladder sets)", source="frictionbench.analysis.rows.curve_cells",
+           "label, and the integrator the ladder sets)", source="frictionbench.bench.matrix.step_ladder",
            summary=True),
     Column("curve_level", "parameter", unit="count", meaning="on a curve's row: its level k (dt / 2^k)",
-           source="frictionbench.analysis.rows.curve_cells"),
+           source="frictionbench.bench.matrix.step_ladder"),
     Column("curve_twin", "parameter", unit="text", meaning="on a curve with an optimised cubature: the curve of "
-           "the same variant with every tet", source="frictionbench.analysis.rows.curve_cells"),
+           "the same variant with every tet", source="frictionbench.bench.matrix.step_ladder"),
     Column("curve_floor", "accuracy", unit="text", meaning="on a curve's finest row: what floors it (time step, "
            "truth, cubature, subspace, reduction, too few levels)", source="frictionbench.analysis.curves.curve_floor",
            summary=True),

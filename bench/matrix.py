@@ -258,8 +258,9 @@ def step_ladder(variant: Variant, levels: Sequence[int] = (0, 1, 2, 3),
         for k in sorted(levels):
             out.append(replace(variant, label=curve if k == 0 else f"{curve}-dt/{2 ** k}", model=variant.model or base,
                                overrides=overrides, dt_scale=variant.dt_scale * 0.5 ** k,
-                               frame_scale=variant.frame_scale * 2 ** k, curve=curve, curve_level=k,
-                               curve_twin=curve_name(twin, integrator) if twin else ""))
+                               frame_scale=variant.frame_scale * 2 ** k,
+                               tags={"curve": curve, "curve_level": k}
+                               | ({"curve_twin": curve_name(twin, integrator)} if twin else {})))
     return out
 
 
@@ -274,6 +275,6 @@ def on_other_mesh(variant: Variant) -> Variant:
     model and compared with the variant itself (`remesh_of`, for `remesh_ratio`); labelled `<label>-remesh`, a point
     of no curve (its accuracy-for-time curve is the variant's own)."""
     return replace(variant, label=f"{variant.label}-remesh", remesh="alt", model=variant.model or variant.label,
-                   remesh_of=variant.label, curve="", curve_level=None, curve_twin="")
+                   remesh_of=variant.label, tags={})
 
 

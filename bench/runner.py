@@ -18,7 +18,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -29,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 from frictionbench.analysis.metrics import error_over_time, pos_rmse_rel
+from frictionbench.analysis.records import RunRecord
 from frictionbench.analysis.rows import collect_rows, ladder_label
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.analysis.truth import ladder_continues
@@ -58,9 +59,9 @@ class Variant:
     variant, a level of a step ladder with its base; default: the label); `remesh_of` the variant on the training
     mesh a remeshed one is compared with (`remesh_ratio`; default: its model); `overrides` and `dt_scale` change the
     scenario (e.g. a larger time step), `frame_scale` multiplies its frame_every (a finer step storing its frames at
-    the scene's frame times). `curve` names the accuracy-for-time curve the variant is a point of, `curve_level` its
-    level k on it (dt / 2^k) and `curve_twin` the curve of the same variant with every tet (cubature "all"), where
-    it uses an optimised cubature (`bench.matrix.step_ladder`; '' and None: no curve). `training` names what a
+    the scene's frame times). `tags` are columns its rows carry as they are, which place them and change no run: a
+    point of an accuracy-for-time curve (`bench.matrix.step_ladder`) has `curve`, `curve_level` and `curve_twin`
+    (`analysis.curves`). `training` names what a
     trained model learns from (`bench.training.TRAINING_DATA`): the training members' references at the scene's step
     (default) or their truths (the finest runs of their truth ladders); the training runs are part of the model's
     cache key, so the two never share a model."""
@@ -75,9 +76,7 @@ class Variant:
     dt_scale: float = 1.0
     transfer: bool = False
     frame_scale: int = 1
-    curve: str = ""
-    curve_level: int | None = None
-    curve_twin: str = ""
+    tags: dict = field(default_factory=dict)
     training: str = "reference"
 
     def __post_init__(self) -> None:
@@ -362,7 +361,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     late = [v for v in variants if v.training == "truth"]
     resolved = list(resolved) + list(prepare_variants(suite, late, store, refs, out / "models", device, ladders))
     run_tasks(variant_tasks(suite, resolved, variants), store, device, jobs, executor, "solver variants")
-    rows = collect_rows(suite, refs, StoreRuns(store, resolved, variants), ladders, spec)
+    rows = collect_rows(suite, refs, run_records(suite, refs, resolved, variants), store, ladders, spec)
     csv = write_results_csv(rows, out / "results.csv")
     write_json_atomic(out / "run.json", {"suite": suite_name, "device": device, "jobs": jobs, "executor": executor,
                                          "variants": [v.__dict__ for v in variants], "only": only,
@@ -380,7 +379,7 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 def distinct_variants(variants: Sequence[Variant]) -> list[Variant]:
     """The variants with each run once, in their order: a variant of the same solver and name as an earlier one (a
     row's identity) and the same run (`_as_run`) is kept once, as whichever of the two places it on a curve has it
-    (sets that share a variant, e.g. `pod-fast` and `pod-cubature-size`). Raises ValueError, naming the variant, for
+    (sets that share a variant, e.g. `pod-fast` and `pod-cubature-size`; its `tags`). Raises ValueError, naming the variant, for
     two different runs of one solver under one name: their rows could not be told apart."""
     kept: dict[tuple[str, str], Variant] = {}
     for v in variants:
@@ -388,16 +387,15 @@ def distinct_variants(variants: Sequence[Variant]) -> list[Variant]:
         same = kept.setdefault(key, v)
         if _as_run(same) != _as_run(v):
             raise ValueError(f"its {v.solver} variant {key[1]!r} differs from another of that name")
-        if v.curve and not same.curve:
+        if v.tags.get("curve") and not same.tags.get("curve"):
             kept[key] = v
     return list(kept.values())
 
 
 def _as_run(variant: Variant) -> Variant:
-    """The variant without what only places its rows (its curve, level and twin) and with its trained model named
-    as the rows name it (`model`, else its name): two variants equal here run the same run."""
-    return replace(variant, curve="", curve_level=None, curve_twin="",
-                   model=variant.model or variant.label or variant.solver)
+    """The variant without what only places its rows (its `tags`) and with its trained model named as the rows name
+    it (`model`, else its name): two variants equal here run the same run."""
+    return replace(variant, tags={}, model=variant.model or variant.label or variant.solver)
 
 
 def available_variants(variants: Sequence[Variant]) -> tuple[list[Variant], list[dict]]:
@@ -618,27 +616,27 @@ def member_variants(resolved, variants: Sequence[Variant], member: SuiteMember) 
     return out
 
 
-@dataclass(frozen=True)
-class StoreRuns:
-    """The runs of a matrix as row building reads them (`analysis.rows.Runs`): the store, and the variants
-    resolved for the suite (`bench.training.prepare_variants`)."""
-
-    store: RunStore
-    resolved: Sequence
-    variants: Sequence[Variant]
-
-    def load(self, key: str) -> tuple[Trajectory | None, dict]:
-        """A stored run: (trajectory or None, stats)."""
-        return self.store.load(key)
-
-    def member_variants(self, member: SuiteMember) -> list[tuple[Variant, dict | str]]:
-        """The (variant, params or why it has none) that apply to a member (`member_variants`)."""
-        return member_variants(self.resolved, self.variants, member)
-
-    def task(self, variant: Variant, member: SuiteMember, params: dict) -> Task | str:
-        """A variant's run on a member, or why it has none (`variant_task`)."""
-        return variant_task(variant, member, params)
-
-    def key(self, scenario: Scenario, solver: str, mesh: MeshSpec | None) -> str:
-        """The store key of `solver`'s run of a scenario with its default parameters on a mesh."""
-        return Task(scenario, solver, {}, mesh).key
+def run_records(suite, refs: Mapping[str, Task], resolved, variants: Sequence[Variant]) -> list[RunRecord]:
+    """Every variant's run on every member of `suite`, resolved for row building (`analysis.records.RunRecord`),
+    member by member in the variants' order: its run (`variant_task`) or why it has none (`member_variants`, on the
+    prepared `resolved` pairs), the full-space run it is compared with (the member's reference `refs[name]`, or with
+    another mesh and no `transfer`, the reference solver's run on that mesh), and its rows' descriptive cells."""
+    records = []
+    for m in suite.scenarios:
+        sc, ref = m.scenario, refs[m.scenario.name]
+        for v, params in member_variants(resolved, variants, m):
+            ident = {"member": sc.name, "solver": v.solver, "variant": v.label or v.solver, "tags": dict(v.tags)}
+            task = params if isinstance(params, str) else variant_task(v, m, params)
+            if isinstance(task, str):
+                records.append(RunRecord(**ident, failure=task))
+                continue
+            label, mesh = ident["variant"], task.mesh
+            compare = ref.key if mesh is None or v.transfer else Task(sc, ref.solver, {}, mesh).key
+            columns = {"remesh": v.remesh or "", "r": params.get("r"), "mesh": (mesh or sc.mesh).key,
+                       "model": v.model or label, "remesh_of": (v.remesh_of or v.model or label) if v.remesh else "",
+                       "train_mesh": sc.mesh.key if "shape" in params else "",
+                       "train_data": v.training if "shape" in params else ""}
+            records.append(RunRecord(**ident, key=task.key, scenario=task.scenario, compare_key=compare,
+                                     transfer=mesh is not None and v.transfer,
+                                     other_mesh=mesh is not None and not v.transfer, columns=columns))
+    return records

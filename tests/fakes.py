@@ -10,7 +10,7 @@ from frictionbench.solvers.trajectory import Trajectory
 
 @dataclass
 class FakeLadder:
-    """A truth ladder as row building reads it (`analysis.rows.LadderRuns`)."""
+    """A truth ladder as row building reads it (`analysis.records.LadderRuns`)."""
 
     integrator: str
     tasks: list

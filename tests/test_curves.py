@@ -33,9 +33,9 @@ def test_a_step_ladder_halves_the_step_keeps_the_frames_and_shares_the_model():
         "affine-r24-cub60-bdf2", "affine-r24-cub60-bdf2-dt/2", "affine-r24-cub60-bdf2-dt/4",
         "affine-r24-cub60-bdf2-dt/8"]
     assert [v.dt_scale for v in ladder] == [1.0, 0.5, 0.25, 0.125] * 2
-    assert [v.curve_level for v in ladder] == [0, 1, 2, 3] * 2
-    assert [v.curve for v in ladder] == ["affine-r24-cub60"] * 4 + ["affine-r24-cub60-bdf2"] * 4
-    assert [v.curve_twin for v in ladder] == ["affine-r24"] * 4 + ["affine-r24-bdf2"] * 4
+    assert [v.tags["curve_level"] for v in ladder] == [0, 1, 2, 3] * 2
+    assert [v.tags["curve"] for v in ladder] == ["affine-r24-cub60"] * 4 + ["affine-r24-cub60-bdf2"] * 4
+    assert [v.tags["curve_twin"] for v in ladder] == ["affine-r24"] * 4 + ["affine-r24-bdf2"] * 4
     # one trained model: the parameters (what the training key is made of) are the base's, the model its label
     assert all(v.params == AFFINE_R24_CUB60.params and v.model == "affine-r24-cub60" for v in ladder)
     assert [v.overrides for v in ladder] == [{}] * 4 + [{"time.integrator": "bdf2"}] * 4
@@ -43,7 +43,7 @@ def test_a_step_ladder_halves_the_step_keeps_the_frames_and_shares_the_model():
     level = ladder[6].scenario(sc)  # bdf2, dt / 4: frames every 8 steps, at the scene's frame times
     assert (level.time.dt, level.time.frame_every, level.time.integrator) == (pytest.approx(0.0025), 8, "bdf2")
     assert ladder[0].scenario(sc) is sc  # level 0 with the scene's integrator is the variant itself
-    assert all(v.curve_twin == "" for v in step_ladder(AFFINE_R24, levels=(0, 1)))
+    assert all("curve_twin" not in v.tags for v in step_ladder(AFFINE_R24, levels=(0, 1)))
     with pytest.raises(ValueError, match="levels"):
         step_ladder(AFFINE_R24, levels=(0, 0))
     with pytest.raises(ValueError, match="rk4"):

@@ -262,4 +262,4 @@ def test_sets_that_share_variants_run_each_once_and_a_name_defined_twice_is_refu
     assert {(v.solver, v.label) for v in default} >= {("licrom", "r20"), ("pod", "r20")}
     ladder = parse_variants("licrom-affine", matrices=[str(EXPERIMENTS / "licrom-ladder.toml")])
     (affine,) = [v for v in ladder if v.label == "affine-r24"]  # in both, on a curve in the second
-    assert affine.curve == "affine-r24" and affine.curve_level == 0
+    assert affine.tags == {"curve": "affine-r24", "curve_level": 0}

@@ -73,7 +73,7 @@ then = [{ retune = { params = { tol = 1.0e-3 }, suffix = "-loose" } }]
     assert [v.dt_scale for v in own] == [1.0, 0.5] * 2 and all(v.scenario(sc).time.integrator == "bdf2" for v in own)
     assert [v.model for v in own] == ["p", "p", "p-fixed-point", "p-fixed-point"]  # a curve's levels on one model
     for v, other in zip(variants[0:8:2], variants[1:8:2]):
-        assert other.remesh == "alt" and other.remesh_of == v.label and not other.curve and other.params == v.params
+        assert other.remesh == "alt" and other.remesh_of == v.label and not other.tags and other.params == v.params
     loose = variants[-1]  # settings that train nothing: the same model
     assert loose.params == {"r": 8, "tol": 1e-3} and loose.model == "q"
 

@@ -20,7 +20,7 @@ from frictionbench.analysis.rows import collect_rows
 from frictionbench.analysis.schema import COLUMNS, OUTCOMES, outcome_of
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.bench.gates import OUTCOME_UNCERTIFIED, check, load_gates
-from frictionbench.bench.runner import StoreRuns, Task
+from frictionbench.bench.runner import Task
 from frictionbench.scenarios.meshes import TetMesh, boundary_triangles
 from frictionbench.scenarios.spec import Contact, Material, Plane, Scenario, TimeSpec
 from frictionbench.scenarios.suites import Suite, SuiteMember
@@ -193,7 +193,7 @@ def test_every_row_of_a_scenario_gets_the_truths_outcome_convergence_and_its_own
     store = FakeStore({task.key: (traj, stats) for task, traj in zip(tasks, trajs)})
     ladder = FakeLadder("backward-euler", tasks, [0.01, 0.004])
     rows = collect_rows(Suite("s", "", (SuiteMember(sc, "train", {}),)), {sc.name: tasks[0]},
-                        StoreRuns(store, [], []), {sc.name: {"backward-euler": ladder}})
+                        [], store, {sc.name: {"backward-euler": ladder}})
     frame = pd.read_csv(write_results_csv(rows, tmp_path / "results.csv", provenance_info={}))
     slides = [outcomes.slide_distance(traj, scene()) for traj in trajs]
     assert slides == pytest.approx([T / 2 for T in stops])  # v0 T / 2

@@ -16,7 +16,7 @@ from frictionbench.analysis.schema import (COLUMNS, Column, docs_table, docs_wit
                                            stability_metrics, truthy)
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.bench.compare import compare_results, default_rules
-from frictionbench.bench.runner import StoreRuns, Task, Variant
+from frictionbench.bench.runner import Task, Variant, run_records
 from frictionbench.reports.headline import headline_table
 from frictionbench.reports.html import write_report_html
 from frictionbench.scenarios.spec import Effects, Scenario
@@ -61,15 +61,15 @@ class Store:
 
 def results(tmp_path: Path, drop: float) -> pd.DataFrame:
     """results.csv of one scenario: its reference and a variant that falls `drop` [m] further, built by
-    `analysis.rows.collect_rows` from stored runs through the harness's `StoreRuns`."""
+    `analysis.rows.collect_rows` from stored runs and the harness's records of them (`run_records`)."""
     sc = Scenario(name="toy", effects=Effects(friction=False))
     member = SuiteMember(sc, "test", {})
     variant = Variant("full", label="slower")
     ref_task, task = Task(sc, "full", {}), Task(sc, "full", {"tag": "slower"})
     stats = {"contact_stiffness": 1e5, "step_ms_median": 1.0}
     store = Store({ref_task.key: (falling_tet(0.05), stats), task.key: (falling_tet(0.05 + drop), stats)})
-    runs = StoreRuns(store, [(variant, {"tag": "slower"})], [variant])
-    rows = collect_rows(Suite("toy", "", (member,)), {sc.name: ref_task}, runs)
+    suite, refs = Suite("toy", "", (member,)), {sc.name: ref_task}
+    rows = collect_rows(suite, refs, run_records(suite, refs, [(variant, {"tag": "slower"})], [variant]), store)
     return pd.read_csv(write_results_csv(rows, tmp_path / f"{drop}" / "results.csv", provenance_info={}))
 
 

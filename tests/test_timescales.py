@@ -15,7 +15,7 @@ import scipy.linalg as sla
 from frictionbench.analysis.rows import collect_rows
 from frictionbench.analysis.schema import COLUMNS
 from frictionbench.analysis.timescales import RESOLUTION_COLUMNS, SCENE_COLUMNS, effective_step
-from frictionbench.bench.runner import StoreRuns, Task
+from frictionbench.bench.runner import Task
 from frictionbench.reports.html import write_report_html
 from frictionbench.scenarios.meshes import TetMesh, load_mesh, make_mesh
 from frictionbench.scenarios.meshgen import structured_box
@@ -185,7 +185,7 @@ def test_every_row_gets_the_scene_time_scales_and_its_step_resolution_and_the_re
     store = FakeStore({t.key: (run, stats) for t in [ref_task, *tasks]})
     ladders = {"cube": {"bdf2": FakeLadder("bdf2", tasks, [0.01, 0.004])}}
     rows = collect_rows(Suite("toy", "", (SuiteMember(sc, "test", {}),)), {"cube": ref_task},
-                        StoreRuns(store, [], []), ladders)
+                        [], store, ladders)
     assert set(SCENE_COLUMNS) | set(RESOLUTION_COLUMNS) <= set(COLUMNS)
     assert len(rows) == 4 and all(set(SCENE_COLUMNS) | set(RESOLUTION_COLUMNS) <= set(row) for row in rows)
     ladder = [row for row in rows if row.get("ladder_level") is not None]
