@@ -67,7 +67,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     from frictionbench.bench.matrix import DEFAULT, MATRICES, SUITE_DEFAULTS, load_matrix, set_names
     from frictionbench.scenarios.meshes import catalogue
     from frictionbench.scenarios.suites import list_suites, load_suite
-    from frictionbench.solvers.registry import solver_names, unavailable
+    from frictionbench.solvers.registry import get_solver, solver_names, unavailable
 
     print("suites:")
     names = list_suites()
@@ -85,6 +85,11 @@ def cmd_list(args: argparse.Namespace) -> int:
     for name in solver_names():
         reason = unavailable(name)
         print(f"  {name:8s} unavailable: {reason}" if reason else f"  {name}")
+        if args.verbose and not reason:
+            cls = get_solver(name)
+            print(f"      parameters: {', '.join(f'{k}={v!r}' for k, v in cls.parameters.items()) or 'none'}")
+            if cls.experimental:
+                print(f"      experimental: {', '.join(f'{k}={v!r}' for k, v in cls.experimental.items())}")
     print("variant sets (--solvers; a file of your own: --matrix FILE):")
     width = max(map(len, set_names()), default=0)
     for name in set_names():

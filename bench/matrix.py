@@ -22,7 +22,9 @@ running); `include = SET` puts a shipped set's variants there (`include = "FILE.
 this one), through the entry's `then` where it has one. `then` applies named transforms in turn, each to
 every variant the previous one gave: `ladder` (`step_ladder`), `lag` (`at_lag`; "scene" keeps the scene's), `retune`
 (solver settings that train nothing, on the same model), `other_mesh` ("only": `on_other_mesh`; "beside": the variant
-and it). Every parameter must be one its solver declares (`Solver.parameters`), checked where the solver imports.
+and it). Every parameter must be one its solver declares (`Solver.parameters`), checked where the solver imports;
+its experimental ones (`Solver.experimental`: knobs for studies of the solver) go in an `experimental` table of the
+entry (or of a `retune`), nowhere else.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ EPOCHS_PARAM = "epochs"
 
 _FIELDS = ("solver", "label", "params", "remesh", "model", "remesh_of", "overrides", "dt_scale", "transfer",
            "training")
-_ENTRY = (*_FIELDS, "preset", "axis", "then", "from", "include")
+_ENTRY = (*_FIELDS, "experimental", "preset", "axis", "then", "from", "include")
 _TRANSFORMS = ("ladder", "lag", "retune", "other_mesh")
 _SCENE = "scene"  # the scene's own integrator or contact lag, where a transform takes a list of them
 
@@ -163,7 +165,9 @@ def _variant(t: Mapping[str, Any], point: Mapping[str, Any], tags: Mapping[str, 
     if missing:
         raise ScenarioError(f"{where}.preset", missing, f"unknown preset; known: {sorted(presets)}")
     params = {k: v for n in names for k, v in presets[n].items()}
-    params = {**(base.params if base else {}), **params, **t.get("params", {}), **point.get("params", {})}
+    named = {**params, **t.get("params", {}), **point.get("params", {})}
+    experimental = dict(checked_table(t.get("experimental", {}), f"{where}.experimental", None, where))
+    params = {**(base.params if base else {}), **named, **experimental}
     given = {k: t[k] for k in _FIELDS if k in t and k not in ("params", "overrides")} | \
         {k: v for k, v in point.items() if k not in ("params", "overrides")}
     if "label" in given:
@@ -177,21 +181,31 @@ def _variant(t: Mapping[str, Any], point: Mapping[str, Any], tags: Mapping[str, 
             Variant(params=params, overrides=overrides, **given)
     except (TypeError, ValueError) as err:
         raise ScenarioError(where, dict(t), str(err)) from None
-    _check_params(v, where)
+    _check_params(v, where, named, experimental)
     return v
 
 
-def _check_params(v: Variant, where: str) -> None:
-    """Every parameter of `v` is one its solver declares (not checked for a solver unavailable here)."""
+def _check_params(v: Variant, where: str, named: Mapping[str, Any], experimental: Mapping[str, Any]) -> None:
+    """Every parameter of `v` is one its solver declares (not checked for a solver unavailable here): those the
+    entry names under `params` (`named`, its presets' included) among its `parameters`, those under `experimental`
+    among its `experimental` ones (`Solver.experimental`)."""
     from frictionbench.solvers.registry import get_solver, solver_names, unavailable
 
     if v.solver not in solver_names():
         raise ScenarioError(f"{where}.solver", v.solver, f"unknown solver; known: {sorted(solver_names())}")
-    if unavailable(v.solver) is None:
-        unknown = sorted(set(v.params) - set(get_solver(v.solver).parameters))
-        if unknown:
-            raise ScenarioError(f"{where}.params", unknown, f"unknown parameter(s) of solver {v.solver!r}; it "
-                                f"declares {sorted(get_solver(v.solver).parameters)}")
+    if unavailable(v.solver) is not None:
+        return
+    cls = get_solver(v.solver)
+    declared, studied = set(cls.parameters), set(cls.experimental)
+    if misplaced := sorted(set(named) & studied):
+        raise ScenarioError(f"{where}.params", misplaced, f"experimental parameter(s) of solver {v.solver!r}: set "
+                            f"them in the entry's `experimental` table")
+    if wrong := sorted(set(experimental) - studied):
+        raise ScenarioError(f"{where}.experimental", wrong, f"not an experimental parameter of solver {v.solver!r};"
+                            f" its experimental ones: {sorted(studied)}")
+    if unknown := sorted(set(v.params) - declared - studied):
+        raise ScenarioError(f"{where}.params", unknown, f"unknown parameter(s) of solver {v.solver!r}; it "
+                            f"declares {sorted(declared)}")
 
 
 def _transform(raw: object, v: Variant, where: str) -> list[Variant]:
@@ -215,10 +229,11 @@ def _transform(raw: object, v: Variant, where: str) -> list[Variant]:
             raise ScenarioError(f"{where}.lag", bad, f"expected {_SCENE!r} or one of {list(CONTACT_LAGS)}")
         return [v if lag == _SCENE else at_lag(v, lag) for lag in lags]
     if name == "retune":
-        a = checked_table(arg, f"{where}.retune", ("params", "suffix"), where)
-        tuned = replace(v, label=f"{v.label}{a.get('suffix', '')}", params=v.params | dict(a.get("params", {})),
+        a = checked_table(arg, f"{where}.retune", ("params", "experimental", "suffix"), where)
+        named, experimental = dict(a.get("params", {})), dict(a.get("experimental", {}))
+        tuned = replace(v, label=f"{v.label}{a.get('suffix', '')}", params=v.params | named | experimental,
                         model=v.model or v.label)
-        _check_params(tuned, f"{where}.retune")
+        _check_params(tuned, f"{where}.retune", named, experimental)
         return [tuned]
     if arg not in ("only", "beside"):
         raise ScenarioError(f"{where}.other_mesh", arg, "expected 'only' or 'beside'")

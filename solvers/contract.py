@@ -2,7 +2,8 @@
 Newton's `solver.step(state_in, state_out, dt)`).
 
 A solver is a `Solver` subclass that declares its `name`, its `parameters` (name -> default; a variant sets
-some of them) and the time `integrators` it implements (names in `solvers.integrators`; backward Euler unless it
+some of them), its `experimental` ones (the same, for studies of the solver rather than its use: a matrix file sets
+them in an entry's `experimental` table only, so that no user set reaches one by accident) and the time `integrators` it implements (names in `solvers.integrators`; backward Euler unless it
 says more: a scene asking for another is skipped with the reason), the packages it `requires` (import names beyond
 the benchmark's own dependencies: without one it is listed as unavailable, and its variants are skipped, with the
 reason; `solvers.registry`), and implements `setup(model)` (untimed: build what the run needs on this model) and
@@ -46,23 +47,24 @@ def check_count(solver: str, key: str, value: Any) -> int:
 class Solver(ABC):
     """Base class of the solver contract; see the module docstring.
 
-    device: where it computes (`cpu` or `cuda`); params: values for some of the declared `parameters` (an unknown
-    name is an error naming it). `basis` is the subspace (n, 3, r) [m per unit q] of a solver with latent
+    device: where it computes (`cpu` or `cuda`); params: values for some of the declared `parameters` and
+    `experimental` ones (an unknown name is an error naming it). `basis` is the subspace (n, 3, r) [m per unit q] of a solver with latent
     coordinates once set up (x = X + basis q), stored with its trajectory; None for a full-space solver.
     """
 
     name: ClassVar[str] = ""
     parameters: ClassVar[Mapping[str, Any]] = {}
+    experimental: ClassVar[Mapping[str, Any]] = {}
     integrators: ClassVar[tuple[str, ...]] = ("backward-euler",)
     requires: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, device: str = "cpu", **params: Any) -> None:
-        unknown = sorted(set(params) - set(self.parameters))
+        unknown = sorted(set(params) - set(self.parameters) - set(self.experimental))
         if unknown:
             raise SolverParameterError(f"solver {self.name!r}: unknown parameter(s) {unknown}; it takes "
-                             f"{sorted(self.parameters)}")
+                                       f"{sorted(self.parameters)} (experimental: {sorted(self.experimental)})")
         self.device = device
-        self.params: dict[str, Any] = dict(self.parameters) | params
+        self.params: dict[str, Any] = dict(self.parameters) | dict(self.experimental) | params
         self.basis: np.ndarray | None = None
 
     def skip(self, model: Model) -> str | None:

@@ -106,11 +106,33 @@ then = [{ other_mesh = "only" }]
     ("[[variant]]\nsolver = 'full'\naxis = [{ name = 'a', values = [] }]\n", "variant[0].axis[0]", "non-empty"),
     ("[[variant]]\ninclude = 'bdf2'\nlabel = 'x'\n", "variant[0]", "no other key"),
     ("[[variant]\n", "m.toml", "cannot read"),
+    ("[[variant]]\nsolver = 'pod'\nparams = { hessian = 'single' }\n", "variant[0].params", "experimental"),
+    ("[[variant]]\nsolver = 'pod'\nexperimental = { r = 4 }\n", "variant[0].experimental",
+     "not an experimental parameter"),
+    ("[[variant]]\nsolver = 'pod'\nthen = [{ retune = { params = { iterations = 3 } } }]\n",
+     "variant[0].then[0].retune.params", "experimental"),
 ])
 def test_a_bad_matrix_file_is_refused_naming_the_field(tmp_path, text, field, reason):
     with pytest.raises(ScenarioError, match=reason) as err:
         _matrix(tmp_path, text)
     assert field in err.value.field
+
+
+def test_an_experimental_parameter_is_set_in_its_own_table_and_runs_as_any_other(tmp_path):
+    (v,) = _matrix(tmp_path, """
+[[variant]]
+solver = "pod"
+label = "p"
+params = { r = 4 }
+experimental = { hessian = "single" }
+then = [{ retune = { experimental = { hessian_refresh = "step" }, suffix = "-step" } }]
+""")
+    assert v.params == {"r": 4, "hessian": "single", "hessian_refresh": "step"} and v.label == "p-step"
+    from frictionbench.solvers.registry import get_solver
+
+    pod = get_solver("pod")
+    assert {"hessian", "hessian_refresh"} <= set(pod.experimental) and not set(pod.experimental) & set(pod.parameters)
+    assert pod(**v.params).params["hessian_refresh"] == "step"  # the solver takes it as it takes its parameters
 
 
 @pytest.mark.parametrize("path", [*sorted(MATRICES.glob("*.toml")), *sorted(EXPERIMENTS.glob("*.toml"))],

@@ -60,19 +60,29 @@ def _cubature(model: Model, W: np.ndarray, spec: str, seed: int, stored: dict | 
     return uniform_cubature(model, int(count), seed), spec
 
 
+#: The reduced solvers' common parameters (`Solver.parameters`; each adds its own).
+COMMON_PARAMETERS = {"cubature": "all", "scheme": "newton", "seed": 0, "tol": 1e-5}
+#: The reduced solvers' experimental parameters (`Solver.experimental`): LiCROM's released integrator (a fixed
+#: iteration count, a latent velocity factor) and the Hessian's precision and refresh, which the study's sets vary.
+EXPERIMENTAL_PARAMETERS = {"iterations": None, "velocity_scale": 1.0, "hessian": "double",
+                           "hessian_refresh": "iteration"}
+
+
 class ReducedPlugin(Solver):
     """What the reduced solvers share: a `ReducedSolver` on the basis `setup` makes, with its resolved cubature.
     Parameters common to all: cubature (`all`, `uniform:N`, `optimized:N`), scheme (`newton`,
-    `projected_gradient`), seed; iterations: None (iterate to convergence) or, with the projected gradient, a fixed
-    count per step with no convergence test; velocity_scale: the latent velocity's factor before each step (1: none);
-    tol: Newton's tolerance [1/s, relative to L] (the full-space solver's measure and default); hessian: "double" or
-    "single", the precision of the Hessian's dense products (`solvers.reduced.solver.HESSIAN_PRECISIONS`);
-    hessian_refresh: "iteration" or "step", when the body terms' Hessian is evaluated (`HESSIAN_REFRESHES` there).
-    LiCROM's released integrator is the projected gradient at 3 iterations and 0.99 (the
-    repository's experiments/licrom-released.toml). Every integrator of `solvers.integrators` (the scenario's `time.integrator`) with either
-    scheme."""
+    `projected_gradient`), seed, tol: Newton's tolerance [1/s, relative to L] (the full-space solver's measure and
+    default). Experimental (`EXPERIMENTAL_PARAMETERS`, a matrix entry's `experimental` table): iterations: None
+    (iterate to convergence) or, with the projected gradient, a fixed count per step with no convergence test;
+    velocity_scale: the latent velocity's factor before each step (1: none); hessian: "double" or "single", the
+    precision of the Hessian's dense products (`solvers.reduced.solver.HESSIAN_PRECISIONS`); hessian_refresh:
+    "iteration" or "step", when the body terms' Hessian is evaluated (`HESSIAN_REFRESHES` there). LiCROM's released
+    integrator is the projected gradient at 3 iterations and 0.99 (the repository's
+    experiments/licrom-released.toml). Every integrator of `solvers.integrators` (the scenario's `time.integrator`)
+    with either scheme."""
 
     integrators = tuple(INTEGRATORS)
+    experimental = EXPERIMENTAL_PARAMETERS
 
     @abstractmethod
     def basis_of(self, model: Model) -> tuple[np.ndarray, dict | None, dict]:
@@ -113,9 +123,6 @@ class ReducedPlugin(Solver):
         """Name, parameters, and the resolved cubature, dimension r, training time."""
         return super().describe() | self.info
 
-
-COMMON_PARAMETERS = {"cubature": "all", "scheme": "newton", "seed": 0, "iterations": None, "velocity_scale": 1.0, "tol": 1e-5,
-           "hessian": "double", "hessian_refresh": "iteration"}
 
 
 def cubature_artefact(folder: Path, spec: str, basis: Callable[[Model], np.ndarray], trajectories: list[Path],
