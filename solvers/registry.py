@@ -28,6 +28,7 @@ _ENTRIES: dict[str, str] = {
     "licrom": "frictionbench.solvers.licrom.plugin:Licrom",
     "pod": "frictionbench.solvers.reduced.pod:Pod",
     "affine": "frictionbench.solvers.reduced.pod:Affine",
+    "modal": "frictionbench.solvers.reduced.modal:Modal",
 }
 
 
