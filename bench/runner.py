@@ -36,7 +36,8 @@ from frictionbench.analysis.truth import ladder_continues
 from frictionbench.bench.executors import make_executor, usable_cores
 from frictionbench.bench.payload import Artefact, RunResult, artefact_folders, localised
 from frictionbench.bench.store import RunStore, TruthStore, run_key, truth_store_root
-from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, shape_of
+from frictionbench.bench.training import (NO_MODEL, Unprepared, family_scenarios, prepare_variants, shape_of,
+                                          training_kind)
 from frictionbench.scenarios.atomic import write_json_atomic
 from frictionbench.scenarios.meshes import TetMesh, load_mesh
 from frictionbench.scenarios.spec import MeshSpec, Scenario
@@ -61,10 +62,11 @@ class Variant:
     scenario (e.g. a larger time step), `frame_scale` multiplies its frame_every (a finer step storing its frames at
     the scene's frame times). `tags` are columns its rows carry as they are, which place them and change no run: a
     point of an accuracy-for-time curve (`bench.matrix.step_ladder`) has `curve`, `curve_level` and `curve_twin`
-    (`analysis.curves`). `training` names what a
-    trained model learns from (`bench.training.TRAINING_DATA`): the training members' references at the scene's step
-    (default) or their truths (the finest runs of their truth ladders); the training runs are part of the model's
-    cache key, so the two never share a model."""
+    (`analysis.curves`). `training` names what a trained model learns from (`bench.training.training_kind`): the
+    training members' references at the scene's step (default), their truths (the finest runs of their truth
+    ladders), or "family:N", N scenes per shape drawn across their family and run at the scene's step
+    (`bench.training.family_scenarios`); the training runs are part of the model's cache key, so no two share a
+    model."""
 
     solver: str
     params: dict = field(default_factory=dict)
@@ -80,9 +82,10 @@ class Variant:
     training: str = "reference"
 
     def __post_init__(self) -> None:
-        if self.training not in TRAINING_DATA:
-            raise ValueError(f"variant {self.label or self.solver!r}: training {self.training!r} not one of "
-                             f"{list(TRAINING_DATA)}")
+        try:
+            training_kind(self.training)
+        except ValueError as err:
+            raise ValueError(f"variant {self.label or self.solver!r}: {err}") from None
 
     def scenario(self, sc: Scenario) -> Scenario:
         """The member's scenario with this variant's `overrides` (dotted fields, e.g. {"contact.stiffness": 1e6}),
@@ -351,11 +354,14 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
     remesh_refs = [Task(m.scenario, reference, {}, mesh_variant(m, v.remesh))
                    for m in suite.scenarios for v in variants if v.remesh and not v.transfer]
     run_tasks(list(refs.values()) + remesh_refs, store, device, jobs, executor, "references")
+    family = family_tasks(suite, variants, reference)
+    run_tasks([t for by in family.values() for tasks in by.values() for t in tasks], store, device, jobs, executor,
+              "family training runs")
     truths = TruthStore(truth_store_root(truth_store), device) if spec and use_truth_store else None
     # the variants that need no truth are prepared (trained) first, so that their runs fill the slots the ladders'
     # last levels leave idle; those trained on truths, after the ladders
     early = [v for v in variants if v.training != "truth"]
-    resolved = prepare_variants(suite, early, store, refs, out / "models", device)
+    resolved = prepare_variants(suite, early, store, refs, out / "models", device, family=family)
     ladders = (run_ladders(suite, spec, store, device, jobs, executor, reference, truths,
                            later=variant_tasks(suite, resolved, early)) if spec else {})
     late = [v for v in variants if v.training == "truth"]
@@ -374,6 +380,14 @@ def run_suite(suite_name: str, out: str | Path, variants: Sequence[Variant], dev
 
         build_report(out)
     return csv
+
+
+def family_tasks(suite, variants: Sequence[Variant], reference: str) -> dict[str, dict[str, list[Task]]]:
+    """The full-space runs of the training families the variants ask for (`training = "family:N"`), by training and
+    mesh shape (`bench.training.family_scenarios`)."""
+    wanted = sorted({v.training for v in variants if training_kind(v.training)[0] == "family"})
+    return {w: {shape: [Task(sc, reference, {}) for sc in scenes]
+                for shape, scenes in family_scenarios(suite, training_kind(w)[1]).items()} for w in wanted}
 
 
 def distinct_variants(variants: Sequence[Variant]) -> list[Variant]:

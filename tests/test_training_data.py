@@ -7,13 +7,15 @@ import json
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from frictionbench.bench.matrix import variant_set
 from frictionbench.bench.runner import Task, Variant, run_suite
 from frictionbench.bench.store import RunStore
-from frictionbench.bench.training import NO_MODEL, TRAINING_DATA, Unprepared, prepare_variants, training_runs
+from frictionbench.bench.training import (NO_MODEL, TRAINING_DATA, Unprepared, family_scenarios, prepare_variants,
+                                          training_kind, training_runs)
 from frictionbench.scenarios.suites import load_suite
 from frictionbench.solvers.reduced.plugin import artefact_key
 from frictionbench.solvers.reduced.pod import Pod
@@ -111,12 +113,69 @@ def test_training_runs_name_each_members_truth_or_why_it_has_none(tmp_path):
     assert "first run failed" in failed["block"]
     resolved = prepare_variants(suite, [TRUTHDATA], store, refs, tmp_path / "models", "cpu", {})
     assert resolved == [(TRUTHDATA, Unprepared("block", no_truth))]
-    with pytest.raises(ValueError, match="training data 'truths'"):
+    with pytest.raises(ValueError, match="training 'truths'"):
         training_runs(suite, refs, store, {}, "truths")
     with pytest.raises(ValueError, match="training 'truths'"):
         Variant("pod", {"r": 4}, training="truths")
     assert TRAINING_DATA == ("reference", "truth") and NO_MODEL == "no reduced model for this mesh shape"
 
+
+
+#: Block drops on a flat and on a 30 degree plane at two friction coefficients, one member held out at mu 0.9.
+TILTED = suite_tables("tilted", block_drop(clearance=0.005, duration=0.04),
+                      {"name": "plane", "values": [{"label": "flat", "plane.normal": [0.0, 1.0, 0.0]},
+                                                   {"label": "tilt", "plane.normal": [0.5, 0.8660254, 0.0]}]},
+                      mu_axis(0.2, 0.6), description="drops on two planes",
+                      extra=[{"labels": {"plane": "held"}, "split": "test",
+                              "overrides": {"plane.normal": [-0.5, 0.8660254, 0.0], "plane.friction": 0.9}}])
+
+
+def test_a_training_family_spans_the_training_members_tilts_downhill_directions_friction_and_yaw(tmp_path):
+    suite = load_suite(str(write_toml(tmp_path / "tilted.toml", TILTED)))
+    assert len(suite.train) == 4 and [m.scenario.plane.friction for m in suite.test] == [0.9]
+    family = family_scenarios(suite, 32)
+    assert list(family) == ["block"] and len(family["block"]) == 32
+    scenes = family["block"]
+    assert scenes[0].name == "tilted/family32-block-0" and len({s.name for s in scenes}) == 32
+    normals = np.array([s.plane.normal for s in scenes])
+    tilt = np.degrees(np.arccos(normals[:, 1]))
+    assert tilt.min() >= 0.0 and tilt.max() <= 30.0 + 1e-9 and tilt.max() - tilt.min() > 15.0
+    azimuth = np.degrees(np.arctan2(normals[:, 2], normals[:, 0]))
+    assert np.diff(np.sort(np.r_[azimuth, azimuth.min() + 360.0])).max() < 90.0  # all round the vertical
+    mu = np.array([s.plane.friction for s in scenes])
+    assert mu.min() >= 0.2 and mu.max() <= 0.6  # the held-out member's 0.9 takes no part
+    yaw = np.array([s.initial.rotation[1] for s in scenes])
+    assert 0.0 <= yaw.min() and yaw.max() <= 360.0 and yaw.std() > 60.0
+    assert family_scenarios(suite, 32) == family  # seeded
+    assert family_scenarios(suite, 4)["block"][0] != scenes[0]  # another N, other draws
+    assert training_kind("family:16") == ("family", 16)
+    for bad in ("family:0", "family:x", "family:100000", "families:4"):
+        with pytest.raises(ValueError, match="family:N"):
+            training_kind(bad)
+
+
+def test_a_family_trained_variant_trains_on_its_drawn_scenes_runs(tmp_path):
+    suite = write_toml(tmp_path / "tilted.toml", TILTED)
+    calls: list[list[Path]] = []
+    prepare = Pod.prepare
+
+    def recording(self, shape, trajectories, out_dir, suite_name):
+        calls.append(list(trajectories))
+        return prepare(self, shape, trajectories, out_dir, suite_name)
+
+    variant = Variant("pod", {"r": 4}, label="r4-family3", training="family:3")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Pod, "prepare", recording)
+        rows = pd.read_csv(run_suite(str(suite), tmp_path / "out", variants=[variant], report=False,
+                                     with_truth=False))
+    (paths,) = calls
+    store = RunStore(tmp_path / "out" / "runs")
+    names = [json.loads((p.parent / "stats.json").read_text())["scenario"] for p in paths]
+    assert names == [f"tilted/family3-block-{i}" for i in range(3)] and all(p.is_file() for p in paths)
+    refs = set(rows[rows["variant"] == "reference"]["run"])
+    assert not refs & {p.parent.name for p in paths} and store.root == paths[0].parent.parent
+    trained = rows[rows["variant"] == "r4-family3"]
+    assert len(trained) == 5 and (trained["status"] == "ok").all() and (trained["train_data"] == "family:3").all()
 
 
 def test_a_licrom_model_is_keyed_by_its_training_runs(tmp_path: Path, licrom_trainings):
