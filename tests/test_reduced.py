@@ -452,11 +452,11 @@ def test_reduced_tolerance_and_precision_are_checked(block):
         ReducedSolver(model, W, hessian="half")
     with pytest.raises(ValueError, match="hessian_refresh = 'never': expected one of \\['iteration', 'step'\\]"):
         ReducedSolver(model, W, hessian_refresh="never")
-    plugin = Affine(hessian_refresh="step", tol=1e-3, hessian="single")  # the solver's declared parameters, passed on
+    plugin = Affine(hessian_refresh="step", tol=1e-3, hessian="single")  # declared (experimental) ones, passed on
     plugin.setup(model)
     assert (plugin.solver.hessian_refresh, plugin.solver.tol, plugin.solver.reduced.B_hessian.dtype) == (
         "step", 1e-3, np.float32)
-    assert Affine().parameters["hessian_refresh"] == "iteration"
+    assert Affine().experimental["hessian_refresh"] == Affine().params["hessian_refresh"] == "iteration"
 
 
 @pytest.mark.parametrize("mu", [0.0, 0.3])
