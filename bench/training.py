@@ -113,7 +113,8 @@ def training_runs(suite: Suite, refs: dict, store: RunStore, ladders: Mapping | 
     groups: dict[str, list[Path] | str] = {}
     if kind == FAMILY:
         for shape, tasks in (family or {}).get(data, {}).items():
-            failed = [t.scenario.name for t in tasks if not store.done(t.key) or store.load(t.key)[0] is None]
+            failed = [t.scenario.name for t in tasks
+                      if not store.done(t.key) or not (store.folder(t.key) / "trajectory.npz").is_file()]
             groups[shape] = (f"family training run {failed[0]} did not finish" if failed
                              else [store.folder(t.key) / "trajectory.npz" for t in tasks])
         return groups
