@@ -21,7 +21,7 @@ from frictionbench.solvers.physics.contact import lagged_pressure
 from frictionbench.solvers.physics.friction import creep_speed
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
-from frictionbench.solvers.reduced.bases import project
+from frictionbench.solvers.reduced.bases import body_frame_displacements, project
 from frictionbench.solvers.trajectory import Trajectory
 
 ArrayLike3 = Sequence[float] | np.ndarray
@@ -234,17 +234,22 @@ def stick_agree(ref: Trajectory, traj: Trajectory, plane_normal: ArrayLike3, *,
     return stick(traj, plane_normal, L, **kw)[0] == stick(ref, plane_normal, L, **kw)[0]
 
 
-def proj_rmse_rel(ref: Trajectory, basis: np.ndarray, masses: np.ndarray | None = None) -> float:
+def proj_rmse_rel(ref: Trajectory, basis: np.ndarray, masses: np.ndarray | None = None, frame: str = "world"
+                  ) -> float:
     """Best relative error a subspace can reach on the reference: sqrt(mean_k,i |W_i q_k - u_ki|^2) / L.
 
     u_k = x_ref_k - X (F, n, 3) are the reference displacements, W the basis (n, 3, r) or (3n, r) [m], and q_k the
     per-frame least-squares fit: argmin_q |W q - u_k|^2 when masses is None (then this is the lowest
     `pos_rmse_rel` any trajectory in the subspace can have), else argmin_q (W q - u_k)^T M (W q - u_k) with the
-    lumped mass matrix M (the reduced solver's own metric). The error itself is always the unweighted RMS.
+    lumped mass matrix M (the reduced solver's own metric). The error itself is always the unweighted RMS. With
+    frame = "body" (a basis whose deformation columns turn with the body, `solvers.reduced.frame`) u_k are the
+    displacements in the body's frame (`body_frame_displacements`, the masses or uniform weights), whose fit errors
+    are the world's, the frame being a rigid motion.
     """
     n = ref.X.shape[0]
     W = np.asarray(basis, dtype=float).reshape(n, 3, -1)
-    u = ref.x - ref.X  # (F, n, 3)
+    u = (ref.x - ref.X if frame == "world"
+         else body_frame_displacements(ref.X, ref.x, _masses(n, masses)))  # (F, n, 3)
     q = project(W, u, None if masses is None else _masses(n, masses))  # (F, r)
     return float(np.sqrt(np.mean(np.sum((np.einsum("ncr,fr->fnc", W, q) - u) ** 2, axis=-1)))) / bbox_diagonal(ref.X)
 
@@ -447,6 +452,6 @@ def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, ma
         row["stick_ref"], row["end_speed_ref"] = stick(ref, plane.normal, L, **kw)
         row["stick_agree"] = row["stick"] == row["stick_ref"]
     if basis is not None:
-        row["proj_rmse_rel"] = proj_rmse_rel(ref, basis)
+        row["proj_rmse_rel"] = proj_rmse_rel(ref, basis, frame=traj.meta.get("basis_frame", "world"))
     row.update(stability(traj, plane=plane, material=material, gravity=gravity, masses=masses, contact=contact))
     return row

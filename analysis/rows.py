@@ -149,7 +149,8 @@ def collect_rows(suite: Suite, refs: Mapping[str, RunTask], records: Sequence[Ru
             parts = {"err_time": err_truth(on_truth_mesh(run_ref, other_mesh))["err_truth"]}
             if traj is not None and traj.basis is not None:
                 truth_here = transfer_to_mesh(truth_traj, traj) if other_mesh else truth_traj
-                parts["err_projection"] = proj_rmse_rel(truth_here, traj.basis)
+                parts["err_projection"] = proj_rmse_rel(truth_here, traj.basis,
+                                                        frame=traj.meta.get("basis_frame", "world"))
             return parts
 
         rows.append(base | {"solver": ref_task.solver, "variant": "reference", "run": ref_task.key, "dt": sc.time.dt,

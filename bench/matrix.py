@@ -45,7 +45,7 @@ MATRICES = Path(__file__).with_name("matrices")
 PRESETS = MATRICES / "presets.toml"
 
 #: The sets `frictionbench run` runs without --solvers: DEFAULT, or the suite's own in SUITE_DEFAULTS.
-DEFAULT = "licrom,licrom-affine,pod,affine,full-sweep"
+DEFAULT = "licrom,licrom-affine,pod,pod-frame,affine,full-sweep"
 SUITE_DEFAULTS = {"hard": "hard", "paper": "paper", "paper-damped": "paper"}
 
 #: `--epochs` replaces this parameter of the variants that train.

@@ -57,6 +57,9 @@ class Solver(ABC):
     experimental: ClassVar[Mapping[str, Any]] = {}
     integrators: ClassVar[tuple[str, ...]] = ("backward-euler",)
     requires: ClassVar[tuple[str, ...]] = ()
+    #: The frame `basis` is in: "world" (x = X + basis q) or "body" (its deformation columns turn with the body,
+    #: `solvers.reduced.frame`); the projection error fits the truth in it.
+    basis_frame: ClassVar[str] = "world"
 
     def __init__(self, device: str = "cpu", **params: Any) -> None:
         unknown = sorted(set(params) - set(self.parameters) - set(self.experimental))

@@ -27,8 +27,10 @@ _ENTRIES: dict[str, str] = {
     "full": "frictionbench.solvers.full.plugin:FullSpace",
     "licrom": "frictionbench.solvers.licrom.plugin:Licrom",
     "pod": "frictionbench.solvers.reduced.pod:Pod",
+    "pod-frame": "frictionbench.solvers.reduced.pod:PodFrame",
     "affine": "frictionbench.solvers.reduced.pod:Affine",
     "modal": "frictionbench.solvers.reduced.modal:Modal",
+    "modal-frame": "frictionbench.solvers.reduced.modal:ModalFrame",
 }
 
 

@@ -66,6 +66,8 @@ def run_scenario(scenario: Scenario, solver: str = "full", device: str = "cpu", 
         traj, steps = err.trajectory, err.stats
         stats.update(failed=True, failure=str(err))
     traj.basis = stepper.basis
+    if stepper.basis_frame != "world":
+        traj.meta["basis_frame"] = stepper.basis_frame
     stats["run_s"] = time.perf_counter() - t0
     stats.update({k: v for k, v in stats_summary(steps, scenario.time.tol).items()})
     if scenario.time.adaptive:

@@ -6,7 +6,8 @@
 - `interpolate_basis`: a basis of one mesh carried to another mesh of the same shape (piecewise linear on the
   first mesh's tets, `barycentric_weights`);
 - `full_basis`: the complete per-vertex basis (the reduced solver then equals the full-space one);
-- `project`: the coordinates of displacements in a basis (mass-weighted least squares).
+- `project`: the coordinates of displacements in a basis (mass-weighted least squares);
+- `body_rotation`, `body_frame_displacements`, `rotated_basis`: the body's frame (`solvers.reduced.frame`).
 """
 
 from __future__ import annotations
@@ -170,3 +171,47 @@ def interpolate_basis(W: np.ndarray, X_src: np.ndarray, tets: np.ndarray, X_dst:
                          f"outside the source mesh ({gap[far] / size:.1%} of its size, more than "
                          f"{OUTSIDE_TOLERANCE:.0%}): not a mesh of the same shape")
     return np.einsum("pk,pkdr->pdr", w, W[idx])
+
+
+# ----- the body's frame (`solvers.reduced.frame`) ---------------------------------------------------------------
+def body_rotation(X: np.ndarray, x: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """The body's rotation R (3, 3) (or (F, 3, 3) for frames x (F, n, 3)): the rotation part of the polar decomposition
+    of A = sum_i m_i (x_i - c)(X_i - C)^T with c, C the mass centres of x and X (n, 3) [m]; the rotation that
+    best maps the rest shape's offsets onto the current ones in the mass norm (shape matching)."""
+    x = np.asarray(x, dtype=np.float64)
+    w = mass / mass.sum()
+    Xc = X - w @ X
+    xc = x - np.einsum("n,...na->...a", w, x)[..., None, :]
+    A = np.einsum("n,...na,nb->...ab", w, xc, Xc)
+    return _rotation_of(A)
+
+
+def _rotation_of(A: np.ndarray) -> np.ndarray:
+    """The proper rotations R (..., 3, 3) of the polar decompositions A = R S of matrices A (..., 3, 3); where A
+    reflects (an inverted fit), the reflection moved onto its smallest stretch."""
+    U, _, Vt = np.linalg.svd(A)
+    U[..., :, 2] *= np.where(np.linalg.det(U @ Vt) < 0.0, -1.0, 1.0)[..., None]
+    return U @ Vt
+
+
+def rotation_angle(R1: np.ndarray, R2: np.ndarray) -> float:
+    """The angle [rad] of the rotation R1^T R2 between two rotations (3, 3), from |R1 - R2|_F = 2 sqrt(2) sin(angle / 2)
+    (accurate for small angles too, where the trace's arccos loses half the digits)."""
+    return float(2.0 * np.arcsin(min(1.0, np.linalg.norm(R1 - R2) / (2.0 * np.sqrt(2.0)))))
+
+
+def body_frame_displacements(X: np.ndarray, x: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """Displacements in the body's frame (F, n, 3) [m] of frames x (F, n, 3): R_f^T (x_f - c_f) + C - X, each frame
+    turned back by its rotation R_f (`body_rotation`) and moved back onto the rest mass centre C."""
+    x = np.asarray(x, dtype=np.float64)
+    w = mass / mass.sum()
+    R = body_rotation(X, x, mass)
+    c = np.einsum("n,fna->fa", w, x)
+    return np.einsum("fba,fnb->fna", R, x - c[:, None, :]) + (w @ X) - X
+
+
+def rotated_basis(W: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """W(R) (n, 3, r): the first 12 columns of W (the affine fields' span) as they are, the others turned by R."""
+    out = W.copy()
+    out[:, :, N_AFFINE:] = np.einsum("ab,nbk->nak", R, W[:, :, N_AFFINE:])
+    return out

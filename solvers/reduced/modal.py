@@ -27,7 +27,7 @@ from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.material import element_hessians, rest_stiffness
 from frictionbench.solvers.physics.terms import element_blocks
 from frictionbench.solvers.reduced.bases import affine_basis, mass_orthonormalise
-from frictionbench.solvers.reduced.plugin import COMMON_PARAMETERS, ReducedPlugin
+from frictionbench.solvers.reduced.plugin import COMMON_PARAMETERS, FRAME_PARAMETERS, ReducedPlugin
 
 #: Central-difference step of the Hessian's derivative along a mode, as a fraction of L (the mode scaled so that its
 #: largest vertex displacement is this): the difference's truncation error is O(step^2) of a quadratic variation.
@@ -139,3 +139,12 @@ class Modal(ReducedPlugin):
         p = self.params
         W, info = modal_basis(model, int(p["modes"]), int(p["derivatives"]), int(p["derivative_modes"]))
         return W, None, info
+
+
+class ModalFrame(Modal):
+    """The modal subspace stepped in the body's frame (`solvers.reduced.frame.FrameSolver`): the modes and their
+    derivatives, computed at rest, turned with the body, as modal warping does for each element."""
+
+    name = "modal-frame"
+    basis_frame = "body"
+    parameters = Modal.parameters | FRAME_PARAMETERS

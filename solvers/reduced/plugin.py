@@ -24,8 +24,9 @@ from frictionbench.scenarios.atomic import atomic_open, write_json_atomic
 from frictionbench.solvers.contract import Solver, check_count
 from frictionbench.solvers.integrators import INTEGRATORS
 from frictionbench.solvers.model import Model, State
-from frictionbench.solvers.reduced.bases import project
+from frictionbench.solvers.reduced.bases import body_frame_displacements, project
 from frictionbench.solvers.reduced.cubature import Cubature, all_tets, optimized_cubature, uniform_cubature
+from frictionbench.solvers.reduced.frame import FRAME_ANGLE, FrameSolver
 from frictionbench.solvers.reduced.solver import ReducedSolver
 from frictionbench.solvers.step_stats import StepStats
 from frictionbench.solvers.trajectory import Trajectory
@@ -40,9 +41,19 @@ def artefact_key(prefix: str, payload: dict) -> str:
     return f"{prefix}-{hashlib.sha256(blob.encode()).hexdigest()[:16]}"
 
 
-def training_q(W: np.ndarray, mass: np.ndarray, trajectories: list[Path], limit: int = 200) -> np.ndarray:
-    """Latent training states: mass-weighted projections of up to `limit` training frames onto W, (S, r)."""
-    frames = np.concatenate([(lambda t: t.x - t.X)(Trajectory.load(p)) for p in trajectories])
+def training_displacements(trajectory: Trajectory, mass: np.ndarray, frame: str = "world") -> np.ndarray:
+    """A training trajectory's displacements (F, n, 3) [m]: x - X in the world (`frame` "world"), or in the body's
+    frame ("body", `solvers.reduced.frame.body_frame_displacements`); mass (n,) [kg] the mesh's lumped masses."""
+    if frame == "body":
+        return body_frame_displacements(trajectory.X, trajectory.x, mass)
+    return trajectory.x - trajectory.X
+
+
+def training_q(W: np.ndarray, mass: np.ndarray, trajectories: list[Path], limit: int = 200, frame: str = "world"
+               ) -> np.ndarray:
+    """Latent training states: mass-weighted projections of up to `limit` training frames (their displacements in
+    `frame`, `training_displacements`) onto W, (S, r)."""
+    frames = np.concatenate([training_displacements(Trajectory.load(p), mass, frame) for p in trajectories])
     return project(W, frames[np.linspace(0, len(frames) - 1, min(limit, len(frames))).astype(int)], mass)
 
 
@@ -66,6 +77,11 @@ COMMON_PARAMETERS = {"cubature": "all", "scheme": "newton", "seed": 0, "tol": 1e
 #: iteration count, a latent velocity factor) and the Hessian's precision and refresh, which the study's sets vary.
 EXPERIMENTAL_PARAMETERS = {"iterations": None, "velocity_scale": 1.0, "hessian": "double",
                            "hessian_refresh": "iteration"}
+
+
+#: The parameter of a solver whose basis is stepped in the body's frame (`basis_frame = "body"`): how far [rad] the
+#: body may turn from its frame before the frame follows it (`solvers.reduced.frame.FrameSolver`).
+FRAME_PARAMETERS = {"frame_angle": FRAME_ANGLE}
 
 
 class ReducedPlugin(Solver):
@@ -96,10 +112,12 @@ class ReducedPlugin(Solver):
         fixed = p["iterations"] is not None
         if fixed:
             check_count(self.name, "iterations", p["iterations"])
-        solver = ReducedSolver(model, W, cub, scheme=p["scheme"], device=self.device, seed=p["seed"],
-                               name=self.name, fixed_iterations=fixed, velocity_scale=float(p["velocity_scale"]),
-                               tol=p["tol"], hessian=p["hessian"], hessian_refresh=p["hessian_refresh"],
-                               **({"max_iter": p["iterations"]} if fixed else {}))
+        kind, extra = ((FrameSolver, {"frame_angle": p["frame_angle"]}) if self.basis_frame == "body"
+                       else (ReducedSolver, {}))
+        solver = kind(model, W, cub, scheme=p["scheme"], device=self.device, seed=p["seed"],
+                      name=self.name, fixed_iterations=fixed, velocity_scale=float(p["velocity_scale"]),
+                      tol=p["tol"], hessian=p["hessian"], hessian_refresh=p["hessian_refresh"],
+                      **({"max_iter": p["iterations"]} if fixed else {}), **extra)
         self.info = {"cubature_used": used, "r": int(W.shape[2]), "cubature_count": int(len(cub[0]))}
         if p["scheme"] == "projected_gradient":
             # the paper's scheme is stable only below 2 / lambda_max(h^2 S^-1 H): take 90% of it at the start state
@@ -126,7 +144,7 @@ class ReducedPlugin(Solver):
 
 
 def cubature_artefact(folder: Path, spec: str, basis: Callable[[Model], np.ndarray], trajectories: list[Path],
-                      seed: int) -> str | None:
+                      seed: int, frame: str = "world") -> str | None:
     """For `spec` = "optimized:N", the file of that cubature selected on the training mesh (`optimized_cubature`
     on the training frames projected onto `basis(model)`, the basis W (n, 3, r) on that mesh), computed once and
     stored in the model's folder with those latent training states (TRAINING_STATES, for a selection on another
@@ -138,7 +156,7 @@ def cubature_artefact(folder: Path, spec: str, basis: Callable[[Model], np.ndarr
         traj = Trajectory.load(trajectories[0])
         model = selection_model(traj.X, traj.tets)
         W = basis(model)
-        q = training_q(W, model.mass, trajectories)
+        q = training_q(W, model.mass, trajectories, frame=frame)
         with atomic_open(states, "wb") as f:
             np.save(f, q, allow_pickle=False)
         if not path.is_file():

@@ -1,6 +1,6 @@
 """The data-driven and the affine subspaces under the solver contract: `pod` (SVD modes of the training mesh, carried
-to another mesh of the shape by interpolation) and `affine` (the 12 affine fields), both `ReducedPlugin`s
-(`solvers.reduced.plugin`).
+to another mesh of the shape by interpolation), `pod-frame` (the same in the body's frame, `solvers.reduced.frame`)
+and `affine` (the 12 affine fields), all `ReducedPlugin`s (`solvers.reduced.plugin`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ import numpy as np
 from frictionbench.scenarios.atomic import atomic_open, write_json_atomic
 from frictionbench.solvers.model import Model
 from frictionbench.solvers.reduced.bases import affine_basis, interpolate_basis, pod_basis
-from frictionbench.solvers.reduced.plugin import (COMMON_PARAMETERS, ReducedPlugin, artefact_key, cubature_artefact,
-                                                  cubature_on_mesh, stored_cubature)
+from frictionbench.solvers.reduced.plugin import (COMMON_PARAMETERS, FRAME_PARAMETERS, PluginError, ReducedPlugin,
+                                                  artefact_key, cubature_artefact, cubature_on_mesh, stored_cubature,
+                                                  training_displacements)
 from frictionbench.solvers.trajectory import Trajectory
 
 
@@ -44,10 +45,11 @@ class Pod(ReducedPlugin):
     def prepare(self, shape: str, trajectories: list[Path], out_dir: Path, suite: str) -> dict:
         """SVD modes of the training displacements of one shape, stored with the training mesh they belong to, and
         an optimised cubature of them if asked for."""
-        basis = _pod_basis_file(shape, trajectories, self.params, out_dir, suite)
+        basis = _pod_basis_file(shape, trajectories, self.params, out_dir, suite, self.basis_frame)
         out = {"shape": shape, "basis": basis}
         cubature = cubature_artefact(Path(basis).parent, str(self.params.get("cubature", "all")),
-                                     lambda model: _load_pod(basis)[0], trajectories, int(self.params.get("seed", 0)))
+                                     lambda model: _load_pod(basis)[0], trajectories, int(self.params.get("seed", 0)),
+                                     self.basis_frame)
         return out | ({"cubature_file": cubature} if cubature else {})
 
     def skip(self, model: Model) -> str | None:
@@ -94,6 +96,24 @@ class Pod(ReducedPlugin):
         return W, info
 
 
+class PodFrame(Pod):
+    """POD modes of the training displacements in the body's frame (each training frame turned back by its own
+    rotation, `solvers.reduced.frame.body_frame_displacements`) beyond the 12 affine fields, stepped with the
+    deformation modes turned with the body (`solvers.reduced.frame.FrameSolver`): the modes hold deformation only,
+    whichever way the body faced in the training data and faces in the run. Otherwise as `pod` (cubature, another
+    mesh); `affine` must stay true."""
+
+    name = "pod-frame"
+    basis_frame = "body"
+    parameters = Pod.parameters | {"affine": True} | FRAME_PARAMETERS
+
+    def prepare(self, shape: str, trajectories: list[Path], out_dir: Path, suite: str) -> dict:
+        """As `Pod.prepare`, in the body's frame; PluginError without the affine fields."""
+        if not self.params["affine"]:
+            raise PluginError(f"{self.name}: affine = false; the body's frame needs the 12 affine fields in the basis")
+        return super().prepare(shape, trajectories, out_dir, suite)
+
+
 def _same_mesh(X: np.ndarray, X_run: np.ndarray) -> bool:
     """Whether rest positions X_run (n, 3) [m] are those of the mesh X (the training mesh itself)."""
     return X.shape == X_run.shape and np.allclose(X, X_run)
@@ -106,11 +126,14 @@ def _load_pod(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         return z["W"], z["X"], z["tets"] if "tets" in z.files else None
 
 
-def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_dir: Path, suite: str) -> str:
-    """The POD basis file of one shape (computed once, cached under models_dir; a file stored without the training
-    mesh's tets gets them, the modes unchanged)."""
+def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_dir: Path, suite: str,
+                    frame: str = "world") -> str:
+    """The POD basis file of one shape, of the training displacements in `frame` ("world" or "body",
+    `training_displacements`) (computed once, cached under models_dir; a file stored without the training mesh's
+    tets gets them, the modes unchanged)."""
     r, with_affine = int(params.get("r", 20)), bool(params.get("affine", False))
-    key = artefact_key("pod", {"shape": shape, "r": r, "affine": with_affine, "data": [str(p) for p in trajectories]})
+    key = artefact_key("pod", {"shape": shape, "r": r, "affine": with_affine, "data": [str(p) for p in trajectories]}
+                       | ({"frame": frame} if frame != "world" else {}))
     path = Path(models_dir) / key / "basis.npz"
     if path.is_file():
         W, X, tets = _load_pod(str(path))
@@ -123,12 +146,12 @@ def _pod_basis_file(shape: str, trajectories: list[Path], params: dict, models_d
     from frictionbench.solvers.physics.material import shape_matrices
 
     mass = lumped_mass(shape_matrices(X, tets)[1], tets, len(X), 1.0)
-    u = np.concatenate([t.x - t.X for t in trajs])
+    u = np.concatenate([training_displacements(t, mass, frame) for t in trajs])
     t0 = time.perf_counter()
     W = pod_basis(u, r, mass, affine_X=X if with_affine else None)
     _save_pod(path, W, X, tets)
     write_json_atomic(path.parent / "info.json", {"train_s": time.perf_counter() - t0, "shape": shape,
-                                                  "suite": suite, "r": r, "affine": with_affine})
+                                                  "suite": suite, "r": r, "affine": with_affine, "frame": frame})
     return str(path)
 
 

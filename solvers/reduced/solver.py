@@ -426,7 +426,8 @@ class ReducedSolver:
             raise ValueError(f"hessian_refresh = {hessian_refresh!r}: expected one of {list(HESSIAN_REFRESHES)}")
         self.fixed_iterations, self.velocity_scale = fixed_iterations, velocity_scale
         self.model = model
-        self.reduced = Subspace.build(model, W, cubature, contact_samples, seed, device, hessian)
+        self._build = dict(cubature=cubature, contact_samples=contact_samples, seed=seed, device=device,
+                           hessian=hessian)
         self.scheme, self.tol, self.max_iter, self.alpha = scheme, tol, max_iter, alpha
         self.armijo, self.max_halvings = armijo, max_halvings
         self.hessian_refresh = hessian_refresh
@@ -436,25 +437,34 @@ class ReducedSolver:
             self.name = name
         self.integrator = model.integrator
         self.contact_lag = ContactLag(model.contact.lag)
-        self.samples = _SamplePoints.build(self.reduced) if scheme == "projected_gradient" else None
         self.terms = terms_of(model)
         missing = [t.name for t in self.terms if not isinstance(t, (BodyTerm, PointTerm))]
         if missing:
             raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
-        self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
         self.point_terms = [t for t in self.terms if isinstance(t, PointTerm)]
-        self.point_evaluations = PointEvaluations(self, self.point_terms) if self.point_terms else None
         self.reach = max((t.reach(model) for t in self.point_terms), default=-np.inf)
-        self.contact_candidates = contact_candidates and self.reduced.N is not None and self.reach < np.inf
+        self.lag_reach = max([0.0] + [t.lag_reach(model) for t in self.terms])
+        self.contact_candidates = contact_candidates and model.plane_normal is not None and self.reach < np.inf
+        self.use_basis(W)
+        self.point_evaluations = PointEvaluations(self, self.point_terms) if self.point_terms else None
+
+    def use_basis(self, W: np.ndarray) -> None:
+        """Step in the subspace of the basis W (n, 3, r) from now on: the `Subspace` and everything built on it (the
+        body terms' evaluations, the projected gradient's sample points, the contact candidates' thresholds); the
+        kept evaluations are dropped. A state's latent coordinates belong to the basis they were computed in."""
+        model = self.model
+        self.reduced = Subspace.build(model, W, **self._build)
+        self.samples = _SamplePoints.build(self.reduced) if self.scheme == "projected_gradient" else None
+        self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
         # N q below this (p,) [m]: the signed distance below the reach plus the round-off margin
         self._near_below = (self.reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
                             if self.contact_candidates else None)
         # the same for the lag (`_lag_points`): what the terms lag, and the gate (below the plane), is zero above
-        self.lag_reach = max([0.0] + [t.lag_reach(model) for t in self.terms])
         self._lag_below = (self.lag_reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
                            if self.contact_candidates and self.lag_reach < np.inf else None)
         self._point_set: tuple[ReducedStep | None, _PointSet | None] = (None, None)  # the last evaluation's
         self._memo: tuple | None = None  # (st, q's bytes, (E, g, H)) of the last `evaluate`
+        self._kept = None
 
     # ----- state mapping ---------------------------------------------------------------------------------
     def project(self, state: State) -> State:
