@@ -546,9 +546,9 @@ def test_point_kernels_match_the_numpy_terms(block, kind):
                 if order >= i:
                     want, size = sum(r[i] for r in ref), sum(np.abs(r[i]).max(initial=0.0) for r in ref)
                     assert got.shape == want.shape and np.abs(got - want).max(initial=0.0) <= 1e-9 * size
-    # a point term of its own (a plug-in's) has no kernel: its numpy reference is evaluated
+    # a point term that names no kernel (a plug-in's): its numpy reference is evaluated
     friction = next(t for t in solver.point_terms if t.name == "friction")
-    mine = type("MyFriction", (type(friction),), {"name": "my_friction"})()
+    mine = type("MyFriction", (type(friction),), {"name": "my_friction", "kernel": None})()
     own = PointEvaluations(solver, [mine])
     assert [type(launch) for launch in own.launches] == [ReferencePointLaunch]
     pts = _PointSet.of(rm, st, None)

@@ -60,7 +60,7 @@ from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, terms_of
 from frictionbench.solvers.reduced import kernels as K
 from frictionbench.solvers.reduced.bases import project
 from frictionbench.solvers.reduced.cubature import Cubature, all_tets, deformation_jacobians
-from frictionbench.solvers.reduced.terms import EVALUATIONS, MODES, CubatureEvaluation, PointEvaluations
+from frictionbench.solvers.reduced.terms import MODES, CubatureEvaluation, PointEvaluations, body_evaluation
 from frictionbench.solvers.step import ContactLag, StepProblem, gate_positions, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
 
@@ -441,7 +441,7 @@ class ReducedSolver:
         missing = [t.name for t in self.terms if not isinstance(t, (BodyTerm, PointTerm))]
         if missing:
             raise ValueError(f"terms {missing} have no reduced evaluation (neither a BodyTerm nor a PointTerm)")
-        self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
+        self.body_evaluations = [body_evaluation(self, t) for t in self.terms if isinstance(t, BodyTerm)]
         self.point_terms = [t for t in self.terms if isinstance(t, PointTerm)]
         self.point_evaluations = PointEvaluations(self, self.point_terms) if self.point_terms else None
         self.reach = max((t.reach(model) for t in self.point_terms), default=-np.inf)
