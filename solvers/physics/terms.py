@@ -175,9 +175,10 @@ class DensityTerm(BodyTerm):
 class PointTerm(Term):
     """A term per contact point (contact, damping, friction): evaluated at any sample points, by `at_points` or by
     the warp kernel it names (`kernel`, module docstring; None: none). Such a kernel runs one thread per point p of
-    `points` (vertex ids) and adds, by `mode` (0: energy; 1: gradient and Hessian; 2: all three), into `energy`,
-    `grad` and the diagonal blocks `values[diag[p]]`; it may take the vertex arrays x, x_lag, x_bar, the per-point
-    area and lagged pressure fn, the plane's `normal`, the effective step h, and the term's `kernel_parameters`."""
+    `points` (its vertex i = points[p]) and adds, by `mode` (0: energy; 1: gradient and Hessian; 2: all three),
+    into `energy`, `grad[i]` and the diagonal block `values[diag[i]]`; it may take the vertex arrays x, x_lag,
+    x_bar, the per-point area and lagged pressure fn, the plane's `normal`, the effective step h, and the term's
+    `kernel_parameters`."""
 
     kernel: ClassVar[str | None] = None
 
