@@ -1,7 +1,8 @@
 """Warp kernels of the physics terms (float64, CPU and CUDA); each mirrors a numpy reference in `solvers.physics`
-and is tested against it. The full-space solver launches them all (`solvers.full.terms`); the reduced solver launches
-the point terms' kernels at its contact candidates and calls the SNH functions from its cubature kernel
-(`solvers.licrom`).
+and is tested against it. The terms name theirs (`solvers.physics.terms`: `DensityTerm.kernels`, `PointTerm.kernel`)
+and the backends pass the arguments by name: the full-space solver launches them all (`solvers.full.terms`); the
+reduced solver launches the point terms' kernels at its contact candidates and calls the SNH functions from its
+cubature kernels (`solvers.reduced.kernels`).
 
 Hessians are accumulated into the values of a block-sparse (BSR, 3x3 blocks) matrix whose pattern is fixed
 by the mesh: `blockmap[16 e + 4 a + b]` is the block of the (tets[e, a], tets[e, b]) pair, `diag[i]` the
@@ -494,11 +495,12 @@ def green_strain_kernel(
     x: wp.array(dtype=wp.vec3d),
     tets: wp.array(dtype=wp.vec4i),
     Dm_inv: wp.array(dtype=wp.mat33d),
-    strain: wp.array(dtype=wp.mat33d),
+    E_bar: wp.array(dtype=wp.mat33d),
 ):
-    """strain[e] = E(F_e(x)), the Green strain of each tet: the viscous term's E(F_bar), once per step."""
+    """E_bar[e] = E(F_e(x)), the Green strain of each tet: the viscous term's E(F_bar) at x = x_bar, once per step
+    (`solvers.physics.terms.TetKernels.at_bar`)."""
     e = wp.tid()
-    strain[e] = green_strain(deformation_gradient(x, tets[e], Dm_inv[e]))
+    E_bar[e] = green_strain(deformation_gradient(x, tets[e], Dm_inv[e]))
 
 
 @wp.kernel

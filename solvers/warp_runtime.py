@@ -1,13 +1,15 @@
-"""One place that initialises warp: quiet output and a kernel cache inside the project's cache folder."""
+"""One place that initialises warp (quiet output and a kernel cache inside the project's cache folder), records and
+relaunches a kernel's launch, and finds a kernel a term names and its arguments by name."""
 
 from __future__ import annotations
 
 import ctypes
+import importlib
 import logging
 import os
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import warp as wp
@@ -103,3 +105,20 @@ class RecordedLaunch:
             self._packed = cmd.hooks.forward, ctypes.byref(cmd.params[0]), args, ctypes.byref(args)
         forward, bounds, _, args = self._packed
         forward(bounds, args)
+
+
+def kernel_named(name: str, module: str) -> wp.Kernel:
+    """The warp kernel a term names (`solvers.physics.terms`): "module:attr", or a bare attribute of `module`."""
+    where, _, attr = name.rpartition(":")
+    return getattr(importlib.import_module(where or module), attr)
+
+
+def kernel_inputs(kernel: wp.Kernel, values: Mapping[str, object], what: str) -> list:
+    """`kernel`'s arguments in its signature's order, each taken from `values` by its name; ValueError naming the
+    ones `values` lacks, and `what` (the term)."""
+    labels = [arg.label for arg in kernel.adj.args]
+    missing = [label for label in labels if label not in values]
+    if missing:
+        raise ValueError(f"{what}: kernel {kernel.key} takes {missing}, which neither the backend nor the term's "
+                         f"kernel_parameters provides")
+    return [values[label] for label in labels]

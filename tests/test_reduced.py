@@ -19,7 +19,7 @@ from frictionbench.solvers.reduced import kernels as K
 from frictionbench.solvers.reduced.bases import affine_basis, full_basis, pod_basis, smooth_basis
 from frictionbench.solvers.reduced.cubature import cubature_force_error, optimized_cubature, uniform_cubature
 from frictionbench.solvers.reduced.pod import Affine
-from frictionbench.solvers.reduced.solver import Subspace, ReducedSolver
+from frictionbench.solvers.reduced.solver import ReducedSolver, ReducedStep, Subspace
 from frictionbench.solvers.simulate import simulate
 
 from scenes import G, com_series, free_flight, incline
@@ -94,7 +94,8 @@ def test_reduced_elastic_terms_match_full_space_assembly(block):
     q = 0.5 * np.random.default_rng(0).standard_normal(20)
     x = model.X + rs.reduced.decode(q)
     args = (model.tets, model.Dm_inv, model.vol, model.mu_snh, model.lam_snh)
-    E, g, H = elastic.reduced(q, None, 2)
+    rest = np.zeros(20)
+    E, g, H = elastic.reduced(q, ReducedStep(0.01, 0.01, rest, rest, rest, rest, None), 2)
     assert E == pytest.approx(pm.elastic_energy(x, *args), rel=1e-12)
     Wf = W.reshape(-1, 20)
     g_ref = Wf.T @ pm.elastic_gradient(x, *args).ravel()
@@ -546,9 +547,9 @@ def test_point_kernels_match_the_numpy_terms(block, kind):
                 if order >= i:
                     want, size = sum(r[i] for r in ref), sum(np.abs(r[i]).max(initial=0.0) for r in ref)
                     assert got.shape == want.shape and np.abs(got - want).max(initial=0.0) <= 1e-9 * size
-    # a point term of its own (a plug-in's) has no kernel: its numpy reference is evaluated
+    # a point term that names no kernel (a plug-in's): its numpy reference is evaluated
     friction = next(t for t in solver.point_terms if t.name == "friction")
-    mine = type("MyFriction", (type(friction),), {"name": "my_friction"})()
+    mine = type("MyFriction", (type(friction),), {"name": "my_friction", "kernel": None})()
     own = PointEvaluations(solver, [mine])
     assert [type(launch) for launch in own.launches] == [ReferencePointLaunch]
     pts = _PointSet.of(rm, st, None)

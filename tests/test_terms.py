@@ -1,8 +1,9 @@
 """Physics terms as objects (solvers.physics.terms): each term's numpy reference is consistent (gradient and
 Hessian against finite differences of its energy), their sum equals the full-space warp evaluation, the step hooks
-(`begin_step`, `max_step`) give what the solvers used to compute by name, and a term registered from a test with its
-backends' evaluations (`solvers.full.terms`, `solvers.reduced.terms`) is picked up by every solver;
-one with only a full-space launcher runs in the reduced solver from its numpy reference."""
+(`begin_step`, `max_step`) give what the solvers used to compute by name, and each backend's evaluation is derived
+from the term's declaration (`solvers.full.terms.launcher_of`, `solvers.reduced.terms.body_evaluation`,
+`point_launch`): toy terms registered from a test by their declaration alone, one with its numpy reference only and
+one declared a `VertexTerm`, are picked up by every solver and match their numpy references there."""
 
 from __future__ import annotations
 
@@ -13,14 +14,14 @@ import pytest
 import scipy.sparse as sp
 
 from frictionbench.scenarios.spec import Contact, Effects, Initial, MeshSpec, Scenario, TimeSpec
+from frictionbench.solvers import kernels as K
 from frictionbench.solvers.build import build_model, initial_state
 from frictionbench.solvers.full import terms as FT
 from frictionbench.solvers.full.solver import FullSpaceSolver, NewtonSettings
 from frictionbench.solvers.model import Model
 from frictionbench.solvers.newton_method import feasible_step
 from frictionbench.solvers.physics import terms as T
-from frictionbench.solvers.physics.contact import lagged_pressure
-from frictionbench.solvers.physics.inertia import Gravity, Inertia
+from frictionbench.solvers.physics.contact import BarrierContact, lagged_pressure
 from frictionbench.solvers.physics.material import Elasticity
 from frictionbench.solvers.reduced import terms as LT
 from frictionbench.solvers.reduced.bases import affine_basis, full_basis
@@ -84,9 +85,12 @@ def test_term_gradients_and_hessians_match_finite_differences(scene):
         assert np.abs(dg - Hd).max() <= 1e-3 * (np.abs(Hd).max() + 1e-9), term.name
 
 
-def test_the_sum_of_the_references_is_the_warp_evaluation(scene):
+def test_the_sum_of_the_references_is_the_warp_evaluation(scene, toys):
+    """The built-in terms' kernels and the toy terms (by the inertia-gravity kernel, by their numpy reference on
+    the host) sum to the references."""
     model, step, x = scene
     solver = FullSpaceSolver(model)
+    assert [type(launcher) for launcher in solver.launchers][-2:] == [FT.ReferenceLauncher, FT.VertexLauncher]
     solver.begin(step)
     solver.x.assign(x)
     E = T.reference_energy(model, step, x)
@@ -118,36 +122,11 @@ class Push(T.BodyTerm):
 
 
 
-class PushLaunch(FT.Launcher):
-    """Push on the full-space solver: the gravity kernel with f."""
-
-    def launch(self, x, h, mode, inertia, hessian=True) -> None:
-        import warp as wp
-
-        from frictionbench.solvers import kernels as K
-
-        s = self.solver
-        wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
-            x, s.x_hat, s.mass, 0.0, wp.vec3d(*self.term.f), s.diag, s.grad, s.values, s.energy_buf, mode])
-
-
-class PushReduced(LT.BodyEvaluation):
-    """Push in the latent coordinates: -f_r . q with f_r = sum_i m_i W_i^T f."""
-
-    def reduced(self, q, st, order):
-        f_r = np.einsum("n,nak,a->k", self.rs.model.mass, self.rs.reduced.W, self.term.f)
-        return -float(f_r @ q), (-f_r if order >= 1 else None), None
-
-    def sample_gradient(self, q, st, u, u_hat):
-        return self.rs.samples.weight[:, None] * -self.term.f
-
-
 @pytest.mark.parametrize("solver", ["full", "reduced-newton", "reduced-pg"])
 def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solver):
+    """Push, registered by its class alone (no backend code), runs from its numpy reference in every solver."""
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Push)
-    monkeypatch.setitem(FT.LAUNCHERS.classes, Push, PushLaunch)
-    monkeypatch.setitem(LT.EVALUATIONS.classes, Push, PushReduced)
     # no elasticity: the projected-gradient scheme at alpha = 1 is unstable for the stiff strain modes
     sc = Scenario(name="pushed_fall", mesh=MeshSpec("block", "coarse"), plane=None,
                   time=TimeSpec(dt=0.01, duration=0.1), effects=Effects(elasticity=False))
@@ -167,23 +146,58 @@ def test_a_registered_term_is_picked_up_by_every_solver(block, monkeypatch, solv
     assert all(s.converged for s in stats)
 
 
-def test_a_term_without_a_backend_evaluation_is_refused_by_name(block, monkeypatch):
-    """The full-space solver refuses a term without a launcher; the reduced one evaluates a body term without an
-    evaluation of its own from its numpy reference, and the built-in terms by their dedicated evaluations."""
+class Unnamed(Elasticity):
+    """Elasticity declared a density term without kernels."""
+
+    name = "unnamed"
+    kernels = None
+
+
+class Renamed(BarrierContact):
+    """The barrier law naming its kernel by module and name."""
+
+    name = "renamed"
+    kernel = "frictionbench.solvers.kernels:barrier_contact_kernel"
+
+
+class Unparametrised(BarrierContact):
+    """The barrier law whose kernel misses an argument (kappa)."""
+
+    name = "unparametrised"
+
+    def kernel_parameters(self, model: Model) -> dict[str, float]:
+        return {"offset": model.plane_offset, "dhat": model.contact.barrier_distance}
+
+
+def test_each_backend_picks_the_evaluation_of_the_terms_kind(block, monkeypatch):
+    """A vertex term in closed form, a density term and a point term by the kernels they name, any other (and a
+    density term naming none) from its numpy reference; a kernel named "module:name" is found there; one whose
+    arguments the term does not give is refused, naming them."""
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Push)
-    model = build_model(PENALTY, block)
-    with pytest.raises(ValueError, match=r"\['push'\] have no full-space launcher"):
-        FullSpaceSolver(model)
-    kinds = {e.term.name: type(e) for e in ReducedSolver(model, affine_basis(model.X)).body_evaluations}
-    assert kinds == {"inertia": LT.EVALUATIONS.classes[Inertia], "gravity": LT.EVALUATIONS.classes[Gravity],
-                     "elasticity": LT.EVALUATIONS.classes[Elasticity], "push": LT.ReferenceEvaluation}
-    assert LT.ReferenceEvaluation not in LT.EVALUATIONS.classes.values()
+    model = build_model(replace(PENALTY, material=replace(PENALTY.material, viscosity=20.0)), block)
+    full = {launcher.term.name: type(launcher) for launcher in FullSpaceSolver(model).launchers}
+    assert full == {"inertia": FT.VertexLauncher, "gravity": FT.VertexLauncher, "elasticity": FT.DensityLauncher,
+                    "viscosity": FT.DensityLauncher, "penalty_contact": FT.PointLauncher,
+                    "damping": FT.PointLauncher, "friction": FT.PointLauncher, "push": FT.ReferenceLauncher}
+    rs = ReducedSolver(model, affine_basis(model.X))
+    reduced = {e.term.name: type(e) for e in rs.body_evaluations}
+    assert reduced == {"inertia": LT.VertexEvaluation, "gravity": LT.VertexEvaluation,
+                       "elasticity": LT.KernelCubatureEvaluation, "viscosity": LT.KernelCubatureEvaluation,
+                       "push": LT.ReferenceEvaluation}
+    assert all(type(launch) is LT.KernelLaunch for launch in rs.point_evaluations.launches)
+    solver = FullSpaceSolver(model)
+    assert type(FT.launcher_of(solver, Unnamed())) is FT.ReferenceLauncher
+    assert type(LT.body_evaluation(rs, Unnamed())) is LT.ReferenceEvaluation
+    barrier = FullSpaceSolver(build_model(BARRIER, block))
+    assert FT.launcher_of(barrier, Renamed()).kernel is K.barrier_contact_kernel
+    with pytest.raises(ValueError, match=r"unparametrised: kernel .* takes \['kappa'\]"):
+        FT.launcher_of(barrier, Unparametrised()).launch(barrier.x, 0.01, 0, True)
 
 
 class Drag(T.BodyTerm):
-    """A test term with only its numpy reference and a full-space launcher: mass-proportional drag c/(2 h_eff)
-    sum_i m_i |x_i - x_bar_i|^2 [J] (c [1/s]) and a uniform push -sum_i m_i f . x_i."""
+    """A test term with only its numpy reference: mass-proportional drag c/(2 h_eff) sum_i m_i |x_i - x_bar_i|^2 [J]
+    (c [1/s]) and a uniform push -sum_i m_i f . x_i."""
 
     name = "drag"
     c, f = 5.0, np.array([2.0, 0.0, -1.0])
@@ -202,26 +216,25 @@ class Drag(T.BodyTerm):
         return sp.diags(np.repeat(self.c / step.h_eff * model.mass, 3)).tocsr()
 
 
-class DragLaunch(FT.Launcher):
-    """Drag on the full-space solver: the inertia-gravity kernel about x_bar with coefficient c / h and f."""
+class DeclaredDrag(T.VertexTerm, Drag):
+    """Drag declared a vertex term (y = x_bar, tau^2 = h_eff / c, a = f), with Drag's numpy reference."""
 
-    def launch(self, x, h, mode, inertia, hessian=True) -> None:
-        import warp as wp
+    name = "declared_drag"
+    target = "x_bar"
 
-        from frictionbench.solvers import kernels as K
+    def tau2(self, model: Model, h: float, inertia: bool) -> float:
+        return h / self.c if inertia else np.inf
 
-        s = self.solver
-        wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
-            x, s.x_bar, s.mass, self.term.c / h if inertia else 0.0, wp.vec3d(*self.term.f), s.diag, s.grad,
-            s.values, s.energy_buf, mode])
+    def acceleration(self, model: Model) -> np.ndarray:
+        return self.f
 
 
 @pytest.fixture
-def drag(monkeypatch):
-    """Drag registered with its physics class and a full-space launcher only."""
+def toys(monkeypatch):
+    """Drag and DeclaredDrag registered by their classes alone."""
     monkeypatch.setattr(T, "_TERMS", T.all_terms())
     T.register(Drag)
-    monkeypatch.setitem(FT.LAUNCHERS.classes, Drag, DragLaunch)
+    T.register(DeclaredDrag)
 
 
 def _reduced_step(solver: ReducedSolver, seed: int) -> tuple[ReducedStep, list[np.ndarray]]:
@@ -231,13 +244,13 @@ def _reduced_step(solver: ReducedSolver, seed: int) -> tuple[ReducedStep, list[n
     return ReducedStep(0.01, 0.01 * 2 / 3, q_prev, q_bar, q_hat, q_prev, None), [q, q2]
 
 
-def test_the_reference_evaluation_is_the_projected_numpy_reference(block, drag):
+def test_the_reference_evaluation_is_the_projected_numpy_reference(block, toys):
     model = build_model(replace(PENALTY, material=replace(PENALTY.material, viscosity=20.0)), block)
     solver = ReducedSolver(model, affine_basis(model.X), scheme="projected_gradient")
     st, (q, q2) = _reduced_step(solver, 6)
     W, X = solver.reduced.W, model.X
     step = T.StepData(X + W @ st.q_hat, X + W @ st.q_prev, st.h, x_bar=X + W @ st.q_bar, h_eff=st.h_eff)
-    (generic,) = [e for e in solver.body_evaluations if isinstance(e.term, Drag)]
+    (generic,) = [e for e in solver.body_evaluations if type(e.term) is Drag]
     assert type(generic) is LT.ReferenceEvaluation
     term, x = generic.term, X + W @ q
     E, g, H = generic.reduced(q, st, 2)
@@ -251,7 +264,9 @@ def test_the_reference_evaluation_is_the_projected_numpy_reference(block, drag):
     u, u_hat = (solver.reduced.decode(p)[solver.samples.vertices] for p in (q, st.q_hat))
     assert np.array_equal(generic.sample_gradient(q, st, u, u_hat),
                           term.gradient(model, step, x)[solver.samples.vertices])
-    # every built-in body term's dedicated evaluation (all tets as cubature: exact) is its projected reference too
+    # every other body term's evaluation (all tets as cubature: exact) is its projected reference too, the declared
+    # drag's (a vertex term about x_bar) among them
+    assert [type(e) for e in solver.body_evaluations][-2:] == [LT.ReferenceEvaluation, LT.VertexEvaluation]
     for dedicated in solver.body_evaluations:
         ref = LT.ReferenceEvaluation(solver, dedicated.term)
         (E, g, H), (E_ref, g_ref, H_ref) = dedicated.reduced(q, st, 2), ref.reduced(q, st, 2)
@@ -265,14 +280,19 @@ def test_the_reference_evaluation_is_the_projected_numpy_reference(block, drag):
 
 
 @pytest.mark.parametrize("integrator", ["backward-euler", "bdf2"])
-def test_a_term_with_only_its_reference_runs_in_the_reduced_solver(block, drag, integrator):
-    """With the complete basis, a reduced run with Drag (evaluated from its numpy reference) is the full-space run."""
+@pytest.mark.parametrize("toy", [Drag, DeclaredDrag])
+def test_a_declared_term_runs_in_both_solvers(block, monkeypatch, integrator, toy):
+    """With the complete basis, a reduced run with a toy term registered by its class alone (Drag: from its numpy
+    reference in both solvers; DeclaredDrag: a vertex term) is the full-space run."""
+    monkeypatch.setattr(T, "_TERMS", T.all_terms())
+    T.register(toy)
     sc = replace(incline(30.0, 0.2), time=TimeSpec(dt=0.01, duration=0.05, integrator=integrator))
     model = build_model(sc, block)
-    assert [t.name for t in T.terms_of(model)][-1] == "drag"
+    assert [t.name for t in T.terms_of(model)][-1] == toy.name
     ref, _ = simulate(model, FullSpaceSolver(model, settings=NewtonSettings(tol=1e-8)))
     solver = ReducedSolver(model, full_basis(model.n), tol=1e-8)
-    assert type(solver.body_evaluations[-1]) is LT.ReferenceEvaluation
+    expected = LT.ReferenceEvaluation if toy is Drag else LT.VertexEvaluation
+    assert type(solver.body_evaluations[-1]) is expected
     traj, stats = simulate(model, solver, solver.project(initial_state(model)))
     assert all(s.converged for s in stats)
     assert np.abs(traj.x - ref.x).max() < 1e-9 * model.L

@@ -129,7 +129,7 @@ def test_the_threaded_hessian_launch_is_bitwise_the_single_launch():
     model = free_body(mesh, Material(viscosity=50.0), Initial(), 0.01, 0.01)
     solver = FullSpaceSolver(model)
     solver.begin(_step(model, _perturbed(model, 11, 0.002)))
-    strain_bar = next(la for la in solver.launchers if isinstance(la.term, pv.Viscosity)).strain_bar
+    strain_bar = next(la for la in solver.launchers if isinstance(la.term, pv.Viscosity)).arrays["E_bar"]
     solver.x.assign(_perturbed(model, 12, 0.002))
     ins = [solver.x, strain_bar, solver.tets, solver.Dm_inv, solver.vol, model.viscosity / 0.01]
     assert_ranges_match_one_launch(solver, K.viscous_hessian_kernel, ins, {1: 1, 2: 1, 3: 1, 4: 1, 6: 16})

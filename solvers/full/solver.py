@@ -4,9 +4,9 @@ Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_grav
 the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with a multistep
 integrator (the model's, e.g. BDF2) h is its effective step h_eff (2/3 dt for BDF2) and x_hat = x_bar + h_eff v_bar
 (`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`), each by
-its launcher (`solvers.full.terms`); an absent term launches no kernel. Newton directions come from the projected
-(PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search on E, in the
-shared loop of `solvers.newton_method`; the terms' feasible-step rule (`solvers.step`) caps the step (the barrier law: no
+the launcher its declaration picks (`solvers.full.terms`); an absent term launches no kernel. Newton directions come
+from the projected (PSD) Hessian, assembled into a fixed block-sparse pattern, and a backtracking (Armijo) line search
+on E, in the shared loop of `solvers.newton_method`; the terms' feasible-step rule (`solvers.step`) caps the step (the barrier law: no
 contact point crosses the plane). Convergence is measured in velocity units: |dx|_inf / h < tol * L [m/s], L the
 rest bounding-box diagonal (h = h_eff: the velocity change of a step dx).
 """
@@ -23,7 +23,7 @@ import warp.optim.linear as wpl
 import warp.sparse as wps
 
 from frictionbench.solvers.full.assembly import ElementRanges, thread_budget
-from frictionbench.solvers.full.terms import LAUNCHERS
+from frictionbench.solvers.full.terms import launcher_of
 from frictionbench.solvers.integrators import Lagged
 from frictionbench.solvers.linalg import make_factoriser
 from frictionbench.solvers.model import Model, State
@@ -156,7 +156,7 @@ class FullSpaceSolver:
             self.values = self.A.values
             self.rhs = wp.zeros(model.n, dtype=wp.vec3d, device=d)
             self.dx = wp.zeros(model.n, dtype=wp.vec3d, device=d)
-        self.launchers = LAUNCHERS.build(self, self.terms)
+        self.launchers = [launcher_of(self, term) for term in self.terms]
 
     # ----- energy, gradient and Hessian of the incremental potential -------------------------------------
     def _launch_terms(self, x: wp.array, h: float, mode: int, inertia: bool = True, hessian: bool = True) -> None:

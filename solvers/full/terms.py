@@ -1,10 +1,15 @@
-"""The full-space backend's evaluation of the physics terms (`solvers.physics.terms`) with its warp kernels
-(`solvers.kernels`): one `Launcher` per term class, in the table `LAUNCHERS` (`@LAUNCHERS.register(TermClass)`).
+"""The full-space backend's evaluation of the physics terms (`solvers.physics.terms`) with warp kernels: one
+`Launcher` per term, derived from what the term declares (`launcher_of`): a `VertexTerm` by the inertia-gravity kernel
+(`VertexLauncher`), a `DensityTerm` and a `PointTerm` by the kernels they name (`DensityLauncher`,
+`PointLauncher`), any other term, or one that names no kernel, from its numpy reference (`ReferenceLauncher`).
 
 A launcher adds its term at positions x into the solver's buffers (mode 0: the energy into `energy_buf`; mode 1:
 the gradient into `grad` and the Hessian's 3x3 blocks into `values`) and keeps what it needs across a step in its
-own buffers, filled by `begin_step` from the step's constants (`StepData`): friction's lagged normal pressure,
-viscosity's Green strain at x_bar. The solver's arrays x_hat, x_lag and x_bar hold the step's positions.
+own buffers, filled by `begin_step` from the step's constants (`StepData`): the lagged normal pressure of a point
+kernel that takes `fn` (friction), the per-tet array of a density's `TetKernels.at_bar` kernel (viscosity's Green
+strain at x_bar). The solver's arrays x_hat, x_lag and x_bar hold the step's positions. A kernel gets its
+arguments by name (`solvers.warp_runtime.kernel_inputs`): the solver's arrays (`solver_arrays`), the launch's x, h
+and mode, the launcher's own buffers and the term's `kernel_parameters`.
 """
 
 from __future__ import annotations
@@ -13,15 +18,12 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.sparse as sp
 import warp as wp
 
 from frictionbench.solvers import kernels as K
-from frictionbench.solvers.physics.contact import BarrierContact, ContactDamping, PenaltyContact
-from frictionbench.solvers.physics.friction import Friction
-from frictionbench.solvers.physics.inertia import Gravity, Inertia
-from frictionbench.solvers.physics.material import Elasticity
-from frictionbench.solvers.physics.terms import StepData, Term, TermTable
-from frictionbench.solvers.physics.viscosity import Viscosity
+from frictionbench.solvers.physics.terms import DensityTerm, PointTerm, StepData, Term, VertexTerm
+from frictionbench.solvers.warp_runtime import kernel_inputs, kernel_named
 
 if TYPE_CHECKING:
     from frictionbench.solvers.full.solver import FullSpaceSolver
@@ -44,117 +46,152 @@ class Launcher(ABC):
         point terms' diagonal blocks cost next to nothing and are added regardless: `values` is scratch then)."""
 
 
-#: The launcher of each term class (`LAUNCHERS.build(solver, terms)`: one per term).
-LAUNCHERS: TermTable[Launcher] = TermTable("full-space launcher (solvers.full.terms.LAUNCHERS)")
+def launcher_of(solver: FullSpaceSolver, term: Term) -> Launcher:
+    """The launcher of `term` on `solver`, by the term's kind and the kernels it names."""
+    if isinstance(term, VertexTerm):
+        return VertexLauncher(solver, term)
+    if isinstance(term, DensityTerm) and term.kernels is not None:
+        return DensityLauncher(solver, term)
+    if isinstance(term, PointTerm) and term.kernel is not None:
+        return PointLauncher(solver, term)
+    return ReferenceLauncher(solver, term)
 
 
-def _scatter_element_blocks(solver: FullSpaceSolver) -> None:
-    """Add the per-element Hessian blocks `elem_blocks` into the block matrix `values`."""
-    wp.launch(K.scatter_blocks_kernel, solver.elem_blocks.shape[0], device=solver.device,
-              inputs=[solver.elem_blocks, solver.blockmap, solver.values])
+def solver_arrays(solver: FullSpaceSolver) -> dict[str, object]:
+    """The solver's arrays a kernel may take, by argument name: the step's positions x_hat, x_lag, x_bar (n,) vec3d
+    [m], the mesh's tets, Dm_inv, vol [m^3] and masses `mass` [kg], the contact points (vertex ids) `points`,
+    their area [m^2] and the plane's `normal`, the block indices `diag` (per vertex) and `blockmap`, the outputs
+    `grad`, `values`, `energy` and the per-element Hessian blocks `blocks` (16 per tet)."""
+    s = solver
+    arrays = {"x_hat": s.x_hat, "x_lag": s.x_lag, "x_bar": s.x_bar, "tets": s.tets, "Dm_inv": s.Dm_inv, "vol": s.vol,
+              "mass": s.mass, "points": s.points, "area": s.area, "diag": s.diag, "blockmap": s.blockmap,
+              "grad": s.grad, "values": s.values, "energy": s.energy_buf, "blocks": s.elem_blocks}
+    if s.model.plane_normal is not None:
+        arrays["normal"] = s.normal
+    return arrays
 
 
-@LAUNCHERS.register(Inertia)
-class _Inertia(Launcher):
+class VertexLauncher(Launcher):
+    """A `VertexTerm`: the inertia-gravity kernel about its target with 1/tau^2 and its acceleration."""
+
+    def __init__(self, solver: FullSpaceSolver, term: VertexTerm) -> None:
+        super().__init__(solver, term)
+        self.target = getattr(solver, term.target)
+        self.acceleration = wp.vec3d(*term.acceleration(solver.model))
+
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s = self.solver
         wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
-            x, s.x_hat, s.mass, 1.0 / h**2 if inertia else 0.0, wp.vec3d(0.0, 0.0, 0.0), s.diag, s.grad, s.values,
-            s.energy_buf, mode])
-
-
-@LAUNCHERS.register(Gravity)
-class _Gravity(Launcher):
-    def __init__(self, solver: FullSpaceSolver, term: Term) -> None:
-        super().__init__(solver, term)
-        self.gravity = wp.vec3d(*solver.model.gravity)
-
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
-        s = self.solver
-        wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
-            x, s.x_hat, s.mass, 0.0, self.gravity, s.diag, s.grad, s.values, s.energy_buf, mode])
-
-
-@LAUNCHERS.register(Elasticity)
-class _Elasticity(Launcher):
-    def __init__(self, solver: FullSpaceSolver, term: Term) -> None:
-        super().__init__(solver, term)
-        self.alpha_snh = 1.0 + 0.75 * solver.model.mu_snh / solver.model.lam_snh  # the SNH rest offset [-]
-
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
-        s, m = self.solver, self.solver.model
-        ins = [x, s.tets, s.Dm_inv, s.vol, m.mu_snh, m.lam_snh, self.alpha_snh]
-        if mode == 0:
-            wp.launch(K.elastic_energy_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.energy_buf])
-        else:
-            wp.launch(K.elastic_gradient_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.grad])
-            if not hessian:
-                return
-            s.elem_blocks.zero_()
-            s.elements.launch(K.elastic_hessian_kernel, ins + [s.elem_blocks], {1: 1, 2: 1, 3: 1, 7: 16})
-            _scatter_element_blocks(s)
-
-
-@LAUNCHERS.register(Viscosity)
-class _Viscosity(Launcher):
-    """Keeps the Green strain E(F(x_bar)) per tet (`strain_bar`), fixed within the step, so computed once per step
-    (`begin_step`), not per Newton iteration."""
-
-    def __init__(self, solver: FullSpaceSolver, term: Term) -> None:
-        super().__init__(solver, term)
-        self.strain_bar = wp.zeros(solver.model.tets.shape[0], dtype=wp.mat33d, device=solver.device)
-
-    def begin_step(self, step: StepData) -> None:
-        s = self.solver
-        wp.launch(K.green_strain_kernel, s.model.tets.shape[0], device=s.device,
-                  inputs=[s.x_bar, s.tets, s.Dm_inv, self.strain_bar])
-
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
-        if not inertia:
-            return
-        s, m = self.solver, self.solver.model
-        ins = [x, self.strain_bar, s.tets, s.Dm_inv, s.vol, m.viscosity / h]
-        if mode == 0:
-            wp.launch(K.viscous_energy_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.energy_buf])
-        else:
-            wp.launch(K.viscous_gradient_kernel, m.tets.shape[0], device=s.device, inputs=ins + [s.grad])
-            if not hessian:
-                return
-            s.elements.launch(K.viscous_hessian_kernel, ins + [s.elem_blocks], {1: 1, 2: 1, 3: 1, 4: 1, 6: 16})
-            _scatter_element_blocks(s)
-
-
-@LAUNCHERS.register(PenaltyContact, ContactDamping)
-class _Penalty(Launcher):
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
-        s, m = self.solver, self.solver.model
-        wp.launch(K.penalty_contact_kernel, m.points.size, device=s.device, inputs=[
-            x, s.x_lag, s.x_bar, s.points, s.area, s.normal, m.plane_offset, self.term.ke(m), self.term.kd(m), h,
-            s.diag, s.grad, s.values, s.energy_buf, mode])
-
-
-@LAUNCHERS.register(BarrierContact)
-class _Barrier(Launcher):
-    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
-        s, m, c = self.solver, self.solver.model, self.solver.model.contact
-        wp.launch(K.barrier_contact_kernel, m.points.size, device=s.device, inputs=[
-            x, s.points, s.area, s.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance, s.diag, s.grad,
+            x, self.target, s.mass, 1.0 / self.term.tau2(s.model, h, inertia), self.acceleration, s.diag, s.grad,
             s.values, s.energy_buf, mode])
 
 
-@LAUNCHERS.register(Friction)
-class _Friction(Launcher):
-    """Keeps the step's lagged normal pressure per contact point (`fn`, [Pa])."""
+#: The per-tet arrays of `solver_arrays` (one row per tet; `blocks`, 16), cut to a thread's range of tets by the
+#: threaded Hessian launch (`ElementRanges.launch`).
+_PER_TET = {"tets": 1, "Dm_inv": 1, "vol": 1, "blocks": 16}
+
+
+class DensityLauncher(Launcher):
+    """A `DensityTerm` by its kernels (`TetKernels`): energy, gradient, then the Hessian blocks per element
+    (threaded over ranges of tets) summed into `values`; its `at_bar` array computed once a step. A `rate` term
+    launches nothing in static equilibrium."""
+
+    def __init__(self, solver: FullSpaceSolver, term: DensityTerm) -> None:
+        super().__init__(solver, term)
+        names = term.kernels
+        self.energy, self.gradient, self.hessian = (kernel_named(n, K.__name__)
+                                                    for n in (names.energy, names.gradient, names.hessian))
+        self.arrays = solver_arrays(solver)
+        self.at_bar = None if names.at_bar is None else kernel_named(names.at_bar, K.__name__)
+        self.per_tet = dict(_PER_TET)
+        if self.at_bar is not None:
+            out = self.at_bar.adj.args[-1].label
+            self.arrays[out] = wp.zeros(solver.model.tets.shape[0], dtype=wp.mat33d, device=solver.device)
+            self.per_tet[out] = 1
+
+    def begin_step(self, step: StepData) -> None:
+        if self.at_bar is not None:
+            s = self.solver
+            wp.launch(self.at_bar, s.model.tets.shape[0], device=s.device,
+                      inputs=kernel_inputs(self.at_bar, {**self.arrays, "x": s.x_bar}, self.term.name))
+
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
+        if self.term.rate and not inertia:
+            return
+        s, m = self.solver, self.solver.model
+        values = {**self.arrays, **self.term.kernel_parameters(m, h), "x": x}
+        ins = lambda kernel: kernel_inputs(kernel, values, self.term.name)  # noqa: E731
+        if mode == 0:
+            wp.launch(self.energy, m.tets.shape[0], device=s.device, inputs=ins(self.energy))
+            return
+        wp.launch(self.gradient, m.tets.shape[0], device=s.device, inputs=ins(self.gradient))
+        if not hessian:
+            return
+        s.elem_blocks.zero_()
+        labels = [arg.label for arg in self.hessian.adj.args]
+        s.elements.launch(self.hessian, ins(self.hessian),
+                          {i: self.per_tet[label] for i, label in enumerate(labels) if label in self.per_tet})
+        wp.launch(K.scatter_blocks_kernel, s.elem_blocks.shape[0], device=s.device,
+                  inputs=[s.elem_blocks, s.blockmap, s.values])
+
+
+class PointLauncher(Launcher):
+    """A `PointTerm` by its kernel over the contact points; a kernel that takes `fn` gets the step's lagged normal
+    pressure per contact point [Pa], kept in a buffer of its own."""
+
+    def __init__(self, solver: FullSpaceSolver, term: PointTerm) -> None:
+        super().__init__(solver, term)
+        self.kernel = kernel_named(term.kernel, K.__name__)
+        self.values = {**solver_arrays(solver), **term.kernel_parameters(solver.model)}
+        takes_fn = "fn" in (arg.label for arg in self.kernel.adj.args)
+        self.fn = wp.zeros(solver.model.points.size, dtype=wp.float64, device=solver.device) if takes_fn else None
+        self.values["fn"] = self.fn
+
+    def begin_step(self, step: StepData) -> None:
+        if self.fn is not None:
+            self.fn.assign(np.ascontiguousarray(step.fn))
+
+    def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
+        s = self.solver
+        wp.launch(self.kernel, s.model.points.size, device=s.device,
+                  inputs=kernel_inputs(self.kernel, {**self.values, "x": x, "h": h, "mode": mode}, self.term.name))
+
+
+class ReferenceLauncher(Launcher):
+    """Any term from its numpy reference (`Term.energy`, `gradient`, `hessian`) on the host, at the step's
+    positions in the solver's arrays and the lagged pressure of `begin_step`: exact, but a copy of x and a
+    full-mesh numpy evaluation per launch. The Hessian must lie in the mesh's block pattern (the tets' vertex pairs
+    and the diagonal); ValueError otherwise."""
 
     def __init__(self, solver: FullSpaceSolver, term: Term) -> None:
         super().__init__(solver, term)
-        self.fn = wp.zeros(solver.model.points.size, dtype=wp.float64, device=solver.device)
+        self.fn: np.ndarray | None = None
+        pattern = solver.pattern
+        self.keys = pattern.rows.astype(np.int64) * pattern.n + pattern.cols  # sorted row-major
 
     def begin_step(self, step: StepData) -> None:
-        self.fn.assign(np.ascontiguousarray(step.fn))
+        self.fn = step.fn
 
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s, m = self.solver, self.solver.model
-        wp.launch(K.friction_kernel, m.points.size, device=s.device, inputs=[
-            x, s.x_bar, s.points, s.area, self.fn, s.normal, m.friction, m.contact.friction_stiffness, h, s.diag,
-            s.grad, s.values, s.energy_buf, mode])
+        step = StepData(s.x_hat.numpy(), s.x_lag.numpy(), h, self.fn, inertia, s.x_bar.numpy(), h)
+        xs = x.numpy()
+        if mode == 0:
+            s.energy_buf.assign(s.energy_buf.numpy() + self.term.energy(m, step, xs))
+            return
+        s.grad.assign(s.grad.numpy() + self.term.gradient(m, step, xs))
+        if hessian:
+            s.values.assign(s.values.numpy() + self._blocks(self.term.hessian(m, step, xs)))
+
+    def _blocks(self, H: sp.spmatrix) -> np.ndarray:
+        """The (3n, 3n) matrix H as block values (nnzb, 3, 3) of the solver's pattern."""
+        n = self.solver.model.n
+        Hb = sp.bsr_matrix(H, blocksize=(3, 3))
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(Hb.indptr)) * n + Hb.indices
+        at = np.minimum(np.searchsorted(self.keys, keys), self.keys.size - 1)
+        if not np.array_equal(self.keys[at], keys):
+            raise ValueError(f"term {self.term.name!r}: its Hessian couples vertices outside the mesh's block "
+                             f"pattern")
+        out = np.zeros((self.keys.size, 3, 3))
+        np.add.at(out, at, Hb.data)
+        return out

@@ -149,6 +149,12 @@ def lagged_pressure(law: str, x, v, normal, offset, ke, kd, kappa, dhat) -> np.n
 class _Penalty(PointTerm):
     """The penalty law with stiffness `ke(model)` and damping `kd(model)`."""
 
+    kernel = "penalty_contact_kernel"
+
+    def kernel_parameters(self, model: Model) -> dict[str, float]:
+        """The plane's offset [m], k_e and k_d."""
+        return {"offset": model.plane_offset, "ke": self.ke(model), "kd": self.kd(model)}
+
     def ke(self, model: Model) -> float:
         """The stiffness k_e [Pa/m] (0: the damping part alone)."""
         return 0.0
@@ -193,6 +199,12 @@ class BarrierContact(PointTerm):
     """kappa b(phi) per unit area, the IPC log barrier."""
 
     name = "barrier_contact"
+    kernel = "barrier_contact_kernel"
+
+    def kernel_parameters(self, model: Model) -> dict[str, float]:
+        """The plane's offset [m], kappa [Pa] and the activation distance dhat [m]."""
+        c = model.contact
+        return {"offset": model.plane_offset, "kappa": c.barrier_stiffness, "dhat": c.barrier_distance}
 
     def applies(self, model: Model) -> bool:
         return model.has("contact") and model.contact.law == "barrier"

@@ -103,6 +103,11 @@ class Friction(PointTerm):
     """The lagged Coulomb friction potential at the contact points (normal pressure `fn`)."""
 
     name = "friction"
+    kernel = "friction_kernel"
+
+    def kernel_parameters(self, model: Model) -> dict[str, float]:
+        """The friction coefficient mu [-] and the stick stiffness k_f [Pa s/m]."""
+        return {"mu": model.friction, "kf": model.contact.friction_stiffness}
 
     def applies(self, model: Model) -> bool:
         return model.has("friction")

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from frictionbench.solvers.model import Model
-from frictionbench.solvers.physics.terms import BodyTerm, StepData, register
+from frictionbench.solvers.physics.terms import StepData, VertexTerm, register
 
 
 def lumped_mass(vol: np.ndarray, tets: np.ndarray, n_vertices: int, density: float) -> np.ndarray:
@@ -40,10 +40,15 @@ def gravity_gradient(mass: np.ndarray, gravity: np.ndarray) -> np.ndarray:
 
 
 @register
-class Inertia(BodyTerm):
+class Inertia(VertexTerm):
     """1/(2 h_eff^2) |x - x_hat|_M^2 (absent in static equilibrium, StepData.inertia = False)."""
 
     name = "inertia"
+    target = "x_hat"
+
+    def tau2(self, model: Model, h: float, inertia: bool) -> float:
+        """h_eff^2; inf (no term) in static equilibrium."""
+        return h**2 if inertia else np.inf
 
     def applies(self, model: Model) -> bool:
         return model.has("inertia")
@@ -61,10 +66,18 @@ class Inertia(BodyTerm):
 
 
 @register
-class Gravity(BodyTerm):
+class Gravity(VertexTerm):
     """-sum_i m_i g . x_i, a uniform field."""
 
     name = "gravity"
+
+    def tau2(self, model: Model, h: float, inertia: bool) -> float:
+        """No spring: inf."""
+        return np.inf
+
+    def acceleration(self, model: Model) -> np.ndarray:
+        """g."""
+        return model.gravity
 
     def applies(self, model: Model) -> bool:
         return model.has("gravity")

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from frictionbench.solvers.model import Model
-from frictionbench.solvers.physics.terms import BodyTerm, StepData, element_blocks, register
+from frictionbench.solvers.physics.terms import DensityTerm, StepData, TetKernels, element_blocks, register
 
 
 def lame_parameters(youngs_modulus: float, poisson_ratio: float) -> tuple[float, float]:
@@ -154,10 +154,16 @@ def pulled_back(H9: np.ndarray, Dm_inv: np.ndarray, vol: np.ndarray) -> np.ndarr
 
 
 @register
-class Elasticity(BodyTerm):
+class Elasticity(DensityTerm):
     """sum_e V_e Psi(F_e), stable Neo-Hookean; the Hessian projected per element."""
 
     name = "elasticity"
+    kernels = TetKernels("elastic_energy_kernel", "elastic_gradient_kernel", "elastic_hessian_kernel",
+                         cubature="snh_kernel")
+
+    def kernel_parameters(self, model: Model, h: float) -> dict[str, float]:
+        """The SNH parameters mu, lam [Pa] and the rest offset alpha = 1 + 3 mu / (4 lam) [-]."""
+        return {"mu": model.mu_snh, "lam": model.lam_snh, "alpha": 1.0 + 0.75 * model.mu_snh / model.lam_snh}
 
     def applies(self, model: Model) -> bool:
         return model.has("elasticity")

@@ -6,11 +6,22 @@ A term holds its pure numpy reference (energy [J], gradient (n, 3) [N], PSD-proj
 the vertex positions x (n, 3) [m]) and declares what it needs from a step through two hooks, both on the contact
 points: `begin_step` fixes what the term lags from the start of the step (friction: the normal pressure), and
 `max_step` caps a Newton step (the barrier law: no point may cross the plane; `max_feasible_step` is the one rule
-both solvers apply). A `PointTerm` (contact, damping, friction) is pure maths at any sample points (`at_points`).
-The physics knows no backend: each backend implements the evaluation of the terms in its own package, in a table
-keyed by the term's class (`solvers.full.terms` with the warp kernels, `solvers.reduced.terms` with the reduced
-evaluations of the body terms, its default the term's numpy reference; the reduced solver sums the point terms'
-`at_points` itself).
+both solvers apply).
+
+The physics knows no backend: a term declares its kind, and each backend derives its evaluation from that
+declaration alone (`solvers.full.terms.launcher`, `solvers.reduced.terms.body_evaluation` and `point_launch`), with
+no table of term classes to edit. The kinds:
+- `VertexTerm`: sum_i m_i (|x_i - y_i|^2 / (2 tau^2) - a . x_i), declared by its target y (`target`), tau^2
+  (`tau2`) and a (`acceleration`): inertia, gravity. Both backends evaluate it in closed form.
+- `DensityTerm`: sum_e V_e psi(F_e) over the tets, declared with the names of its warp kernels (`TetKernels`):
+  elasticity, viscosity. Without kernels it runs from its numpy reference.
+- `PointTerm`: a law per contact point, pure maths at any sample points (`at_points`), optionally with the name of
+  its warp kernel (`kernel`, its scalar arguments `kernel_parameters`): contact, damping, friction.
+- any other `BodyTerm`: its numpy reference alone (exact in both backends, but a full-mesh evaluation per call).
+A kernel is named, not imported (solvers/physics sits below the kernels, pyproject.toml): a bare name is one of
+the backend's kernel module (`solvers.kernels`; a cubature kernel, `solvers.reduced.kernels`), "module:name" any
+other, e.g. the term's own module. A backend passes a kernel its arguments by their names: its own arrays and step
+constants (x, x_hat, tets, vol, h, mode, ...) and the term's `kernel_parameters`.
 `applies(model)` says whether a scene has a term; a solver takes `terms_of(model)` and loops over them. A term is
 a class registered here by `@register` in a module of solvers/physics (every module of the package is imported;
 `_MODULES` gives the summation order of the built-in ones).
@@ -21,9 +32,9 @@ from __future__ import annotations
 import importlib
 import pkgutil
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import ClassVar, Generic, TypeVar
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -107,13 +118,73 @@ class Term(ABC):
 
 
 class BodyTerm(Term):
-    """A term over the whole body (inertia, gravity, elasticity, viscosity): each backend evaluates it by its own
-    table (`solvers.full.terms`, `solvers.reduced.terms`: there by default from its numpy
+    """A term over the whole body (inertia, gravity, elasticity, viscosity): a `VertexTerm`, a `DensityTerm`, or
+    else evaluated by every backend from its numpy reference."""
+
+
+class VertexTerm(BodyTerm):
+    """sum_i m_i (|x_i - y_i|^2 / (2 tau^2) - a . x_i) [J] over the vertices with lumped masses m_i [kg]: a spring
+    of the mass to the step's positions y (`target`) and a uniform acceleration a (3,) [m/s^2]. Inertia:
+    y = x_hat, tau = h_eff; gravity: tau^2 = inf (no spring), a = g."""
+
+    #: y: which of the step's positions (`StepData`): "x_hat", "x_lag" or "x_bar".
+    target: ClassVar[str] = "x_hat"
+
+    @abstractmethod
+    def tau2(self, model: Model, h: float, inertia: bool) -> float:
+        """tau^2 [s^2] at the effective step h [s] (inertia False: static equilibrium); inf: no spring."""
+
+    def acceleration(self, model: Model) -> np.ndarray:
+        """a (3,) [m/s^2]; zero by default."""
+        return np.zeros(3)
+
+
+@dataclass(frozen=True)
+class TetKernels:
+    """The names of a `DensityTerm`'s warp kernels (module docstring: a bare name in `solvers.kernels`, else
+    "module:name"), one thread per tet: `energy` adds sum_e V_e psi_e into `energy`, `gradient` the forces into
+    `grad`, `hessian` writes or adds the 16 blocks (3x3) of tet e from `blocks[16 e]` (zeroed before).
+    `at_bar` (None: none), a kernel (x, tets, Dm_inv, OUT) run once a step at x = x_bar that writes a per-tet 3x3
+    array passed to the other kernels under OUT's name (viscosity: the Green strain E_bar). `cubature` (None: none;
+    a bare name in `solvers.reduced.kernels`), the reduced backend's kernel at the cubature tets' deformation
+    gradients F (and F_bar, those at x_bar, if it takes them), with a packed output row per tet [psi, vec P,
+    L (`rows` x 9)], L^T L the density's projected Hessian in F (`solvers.reduced.kernels.evaluate`)."""
+
+    energy: str
+    gradient: str
+    hessian: str
+    at_bar: str | None = None
+    cubature: str | None = None
+    rows: int = 9
+
+
+class DensityTerm(BodyTerm):
+    """sum_e V_e psi(F_e) [J], an energy density per tet of its deformation gradient F_e (and of the step's, as
+    viscosity's rate: `TetKernels.at_bar`), evaluated by the kernels it names (`kernels`; None: its numpy
     reference)."""
+
+    kernels: ClassVar[TetKernels | None] = None
+    #: A rate term: absent in static equilibrium (`StepData.inertia` False), as viscosity.
+    rate: ClassVar[bool] = False
+
+    def kernel_parameters(self, model: Model, h: float) -> dict[str, float]:
+        """The kernels' scalar arguments by name at the effective step h [s] (each kernel takes those it names)."""
+        return {}
 
 
 class PointTerm(Term):
-    """A term per contact point (contact, damping, friction): evaluated at any sample points."""
+    """A term per contact point (contact, damping, friction): evaluated at any sample points, by `at_points` or by
+    the warp kernel it names (`kernel`, module docstring; None: none). Such a kernel runs one thread per point p of
+    `points` (its vertex i = points[p]) and adds, by `mode` (0: energy; 1: gradient and Hessian; 2: all three),
+    into `energy`, `grad[i]` and the diagonal block `values[diag[i]]`; it may take the vertex arrays x, x_lag,
+    x_bar, the per-point area and lagged pressure fn, the plane's `normal`, the effective step h, and the term's
+    `kernel_parameters`."""
+
+    kernel: ClassVar[str | None] = None
+
+    def kernel_parameters(self, model: Model) -> dict[str, float]:
+        """The kernel's scalar arguments by name, constant over a run."""
+        return {}
 
     @abstractmethod
     def at_points(self, model: Model, x: np.ndarray, x_lag: np.ndarray, x_bar: np.ndarray, area: np.ndarray,
@@ -192,37 +263,6 @@ def max_feasible_step(terms: Sequence[Term], model: Model, x: np.ndarray, dx: np
     for term in terms:
         alpha = min(alpha, term.max_step(model, x, dx))
     return alpha
-
-
-#: A backend's evaluation class of a term (the values of a `TermTable`).
-Impl = TypeVar("Impl")
-
-
-@dataclass
-class TermTable(Generic[Impl]):
-    """A backend's evaluation class for each term class (`classes`), registered by `@table.register(TermClass)`;
-    `what` names it in errors (e.g. "full-space launcher"); `default`: the class of the terms without one (None:
-    such terms are refused)."""
-
-    what: str
-    classes: dict[type[Term], type[Impl]] = field(default_factory=dict)
-    default: type[Impl] | None = None
-
-    def register(self, *term_classes: type[Term]) -> Callable[[type[Impl]], type[Impl]]:
-        """Register an evaluation class for `term_classes` (class decorator)."""
-        def add(evaluation: type[Impl]) -> type[Impl]:
-            for term_class in term_classes:
-                self.classes[term_class] = evaluation
-            return evaluation
-        return add
-
-    def build(self, backend: object, terms: Sequence[Term]) -> list[Impl]:
-        """An evaluation `cls(backend, term)` of each of `terms`, in their order (`default` for the terms without a
-        class of their own); ValueError naming the terms without one where there is no default."""
-        missing = [t.name for t in terms if type(t) not in self.classes and self.default is None]
-        if missing:
-            raise ValueError(f"terms {missing} have no {self.what}")
-        return [self.classes.get(type(t), self.default)(backend, t) for t in terms]
 
 
 # ----- helpers of the numpy references ---------------------------------------------------------------------------

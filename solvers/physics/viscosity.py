@@ -27,7 +27,7 @@ import scipy.sparse.linalg as spla
 from frictionbench.solvers.model import Model
 from frictionbench.solvers.physics.material import (deformation_gradient, nodal_forces, project_psd, pulled_back,
                                                     rest_stiffness)
-from frictionbench.solvers.physics.terms import BodyTerm, StepData, element_blocks, register
+from frictionbench.solvers.physics.terms import DensityTerm, StepData, TetKernels, element_blocks, register
 
 #: Eigenvalues within this relative distance of omega_1^2 belong to the first mode's eigenspace (a symmetric mesh
 #: has degenerate modes); a rigid mode's eigenvalue is below this fraction of omega_1^2.
@@ -128,10 +128,17 @@ def viscosity_for_damping_ratio(model: Model, zeta: float) -> float:
 
 
 @register
-class Viscosity(BodyTerm):
+class Viscosity(DensityTerm):
     """sum_e V_e eta / h_eff |E(F_e) - E(F_bar_e)|^2 (Kelvin-Voigt); absent in static equilibrium (no rates)."""
 
     name = "viscosity"
+    kernels = TetKernels("viscous_energy_kernel", "viscous_gradient_kernel", "viscous_hessian_kernel",
+                         at_bar="green_strain_kernel", cubature="viscous_kernel", rows=15)
+    rate = True
+
+    def kernel_parameters(self, model: Model, h: float) -> dict[str, float]:
+        """eta / h_eff [Pa]."""
+        return {"eta_over_h": model.viscosity / h}
 
     def applies(self, model: Model) -> bool:
         return model.has("viscosity")

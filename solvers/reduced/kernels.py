@@ -15,27 +15,26 @@ with the Hessian factor (~1.5-2.3 us a tet, the machine's speed varying from day
 
 The Kelvin-Voigt damping's density, stress and projected density Hessian (solvers/physics/viscosity.py) come from a
 second kernel of the same shape (`viscous_evaluate`), its Hessian also as a factor (15 rows: the six distinct rows
-of the Green strain's jacobian, and the nine modes of I (x) A_+).
+of the Green strain's jacobian, and the nine modes of I (x) A_+). A `DensityTerm` names its kernel of this shape
+(`TetKernels.cubature`), which `evaluate` launches with its arguments by name.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import numpy as np
 import warp as wp
 
 from frictionbench.solvers.kernels import cofactor, green_strain, snh_eigensystem, snh_mode, snh_psi, sym_eig3
-from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
+from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp, kernel_inputs
 
 f64 = wp.float64
 
 ENERGY, STRESS, HESSIAN = 0, 1, 2
 """Evaluation modes: Psi only; Psi and P; Psi, P and the factor L of (dP/dF)_+ = L^T L."""
-_WIDTH = {ENERGY: 1, STRESS: 10, HESSIAN: 91}
-"""Columns of the SNH kernel's packed output row per tet: [Psi, vec P (9), L (81, row-major)]."""
 VISCOUS_ROWS = 15
-"""Rows of the viscous kernel's Hessian factor: 6 of the strain jacobian, 9 of I (x) A_+."""
-_VISCOUS_WIDTH = {ENERGY: 1, STRESS: 10, HESSIAN: 10 + 9 * VISCOUS_ROWS}
-"""Columns of the viscous kernel's packed output row per tet: [density, vec P (9), L (135, row-major)]."""
+"""Rows of the viscous kernel's Hessian factor: 6 of the strain jacobian, 9 of I (x) A_+ (`TetKernels.rows`)."""
 DEVICES = ("cpu", "cuda")
 
 
@@ -68,15 +67,16 @@ def snh_kernel(F: wp.array(dtype=wp.mat33d), mu: f64, lam: f64, out: wp.array2d(
 
 
 @wp.kernel
-def viscous_kernel(F: wp.array(dtype=wp.mat33d), F_bar: wp.array(dtype=wp.mat33d), c: f64,
+def viscous_kernel(F: wp.array(dtype=wp.mat33d), F_bar: wp.array(dtype=wp.mat33d), eta_over_h: f64,
                    out: wp.array2d(dtype=f64)):
-    """Kelvin-Voigt per tet e, with A = E(F) - E(F_bar) and c = eta / h_eff [Pa]: out[e, 0] = c |A|_F^2; if out has
+    """Kelvin-Voigt per tet e, with A = E(F) - E(F_bar) and c = eta_over_h = eta / h_eff [Pa]: out[e, 0] = c |A|_F^2; if out has
     >= 10 columns, out[e, 1:10] = vec P, P = 2 c F A; if it has more (145), out[e, 10:145] = L (15x9, row-major) with
     L^T L = 2 c (J^T J + I (x) A_+) (`solvers.physics.viscosity.viscous_dpdf`, projected): rows 0-5 sqrt(2 c) times
     the rows of J = dvec E / dvec F for E's entries (0,0), (1,1), (2,2), (0,1), (0,2), (1,2) (the off-diagonal ones
     times sqrt 2: their twins (l, j) are the same row), rows 6 + 3 m + i sqrt(2 c max(lambda_m, 0)) (e_i (x) q_m)
     for A's eigenpairs (lambda_m, q_m)."""
     e = wp.tid()
+    c = eta_over_h
     Fm = F[e]
     A = green_strain(Fm) - green_strain(F_bar[e])
     out[e, 0] = c * wp.ddot(A, A)
@@ -123,37 +123,48 @@ def check_device(device: str) -> None:
 
 
 _buffers: dict[tuple[str, int, int, str], tuple] = {}
-"""(kernel, tets, width, device) -> its launch (`RecordedLaunch`), its input arrays and output array, allocated once
-and reused by every call, and on the CPU their numpy views (on CUDA, None)."""
+"""(kernel, tets, width, device) -> its launch (`RecordedLaunch`), its input arrays by name and output array,
+allocated once and reused by every call, and on the CPU their numpy views by name (on CUDA, None)."""
 
 
-def _evaluate(kernel: wp.Kernel, inputs: list[np.ndarray], scalars: list[float], width: int, rows: int,
-              device: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """One launch of a per-tet kernel of this module on the (c, 3, 3) arrays `inputs` and the scalar arguments
-    `scalars`, into a (c, width) output: its first column (c,), vec P (c, 3, 3) where width >= 10 and the Hessian
-    factor (c, rows, 9) where width > 10 (else None); new arrays."""
+def width(mode: int, rows: int) -> int:
+    """Columns of a cubature kernel's packed output row per tet in `mode`: [density] (ENERGY), [density, vec P]
+    (STRESS), [density, vec P, L (rows x 9, row-major)] (HESSIAN)."""
+    return (1, 10, 10 + 9 * rows)[mode]
+
+
+def evaluate(kernel: wp.Kernel, inputs: Mapping[str, np.ndarray], scalars: Mapping[str, float], mode: int,
+             rows: int, device: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """One launch of a cubature kernel (a `solvers.physics.terms.TetKernels.cubature`: one thread per tet, its
+    packed output row in `out`) with its arguments by name: the (c, 3, 3) arrays of `inputs` (F, and F_bar where it
+    takes it), the scalars it takes of `scalars` and an output of `width(mode, rows)` columns. Returns its first
+    column (c,), vec P (c, 3, 3) from STRESS on and the Hessian factor (c, rows, 9) in HESSIAN (else None); new
+    arrays."""
     check_device(device)
     init_warp()
-    c = inputs[0].shape[0]
-    key = (kernel.key, c, width, device)
+    c = next(iter(inputs.values())).shape[0]
+    cols = width(mode, rows)
+    key = (kernel.key, c, cols, device)
     if key not in _buffers:
-        arrays = [wp.empty(c, dtype=wp.mat33d, device=device) for _ in inputs]
-        out_wp = wp.empty((c, width), dtype=f64, device=device)
-        views = [a.numpy() for a in arrays] + [out_wp.numpy()] if device == "cpu" else None
-        _buffers[key] = (RecordedLaunch(kernel, c, [*arrays, *(1.0 for _ in scalars), out_wp], device), arrays,
-                         out_wp, views)
+        arrays = {name: wp.empty(c, dtype=wp.mat33d, device=device) for name in inputs}
+        out_wp = wp.empty((c, cols), dtype=f64, device=device)
+        views = {name: a.numpy() for name, a in [*arrays.items(), ("out", out_wp)]} if device == "cpu" else None
+        launch = RecordedLaunch(kernel, c, kernel_inputs(kernel, {**scalars, **arrays, "out": out_wp}, kernel.key),
+                                device)
+        _buffers[key] = launch, arrays, out_wp, views
     launch, arrays, out_wp, views = _buffers[key]
-    for k, a in enumerate(inputs):
+    for name, a in inputs.items():
         if views is None:
-            arrays[k].assign(np.ascontiguousarray(a, dtype=np.float64))
+            arrays[name].assign(np.ascontiguousarray(a, dtype=np.float64))
         else:
-            views[k][...] = a
-    for k, value in enumerate(scalars):
-        launch.set(len(inputs) + k, float(value))
+            views[name][...] = a
+    for index, label in enumerate(launch.labels):
+        if label in scalars:
+            launch.set(index, float(scalars[label]))
     launch.launch(c)
-    out = out_wp.numpy().copy() if views is None else views[-1].copy()
-    P = out[:, 1:10].reshape(c, 3, 3) if width >= 10 else None
-    L = out[:, 10:].reshape(c, rows, 9) if width > 10 else None
+    out = out_wp.numpy().copy() if views is None else views["out"].copy()
+    P = out[:, 1:10].reshape(c, 3, 3) if cols >= 10 else None
+    L = out[:, 10:].reshape(c, rows, 9) if cols > 10 else None
     return out[:, 0], P, L
 
 
@@ -162,7 +173,7 @@ def snh_evaluate(F: np.ndarray, mu: float, lam: float, mode: int = HESSIAN, devi
     """Psi (c,) [J/m^3], P (c, 3, 3) [Pa] (mode >= STRESS, else None) and the factor L (c, 9, 9) [sqrt(Pa)] of
     (dP/dF)_+ = L_c^T L_c (row-major vec; mode == HESSIAN, else None) at F (c, 3, 3), on `device` ("cpu" or
     "cuda"). One kernel launch; the results are new arrays."""
-    return _evaluate(snh_kernel, [F], [mu, lam], _WIDTH[mode], 9, device)
+    return evaluate(snh_kernel, {"F": F}, {"mu": mu, "lam": lam}, mode, 9, device)
 
 
 def viscous_evaluate(F: np.ndarray, F_bar: np.ndarray, c: float, mode: int = HESSIAN, device: str = "cpu"
@@ -170,4 +181,4 @@ def viscous_evaluate(F: np.ndarray, F_bar: np.ndarray, c: float, mode: int = HES
     """Kelvin-Voigt at F against F_bar (c, 3, 3) with c = eta / h_eff [Pa]: the density (c,) [J/m^3], P (c, 3, 3)
     [Pa] (mode >= STRESS, else None) and the factor L (c, 15, 9) [sqrt(Pa)] of the projected density Hessian
     2 c (J^T J + I (x) A_+) = L_c^T L_c (mode == HESSIAN, else None); `viscous_kernel`. One launch; new arrays."""
-    return _evaluate(viscous_kernel, [F, F_bar], [c], _VISCOUS_WIDTH[mode], VISCOUS_ROWS, device)
+    return evaluate(viscous_kernel, {"F": F, "F_bar": F_bar}, {"eta_over_h": c}, mode, VISCOUS_ROWS, device)

@@ -60,7 +60,7 @@ from frictionbench.solvers.physics.terms import BodyTerm, PointTerm, terms_of
 from frictionbench.solvers.reduced import kernels as K
 from frictionbench.solvers.reduced.bases import project
 from frictionbench.solvers.reduced.cubature import Cubature, all_tets, deformation_jacobians
-from frictionbench.solvers.reduced.terms import EVALUATIONS, MODES, CubatureEvaluation, PointEvaluations
+from frictionbench.solvers.reduced.terms import MODES, CubatureEvaluation, PointEvaluations, body_evaluation
 from frictionbench.solvers.step import ContactLag, StepProblem, gate_positions, lagged_contact, solve_lagged
 from frictionbench.solvers.step_stats import StepStats
 
@@ -455,7 +455,7 @@ class ReducedSolver:
         model = self.model
         self.reduced = Subspace.build(model, W, **self._build)
         self.samples = _SamplePoints.build(self.reduced) if self.scheme == "projected_gradient" else None
-        self.body_evaluations = EVALUATIONS.build(self, [t for t in self.terms if isinstance(t, BodyTerm)])
+        self.body_evaluations = [body_evaluation(self, t) for t in self.terms if isinstance(t, BodyTerm)]
         # N q below this (p,) [m]: the signed distance below the reach plus the round-off margin
         self._near_below = (self.reach + CANDIDATE_MARGIN * model.L - self.reduced.phi_rest
                             if self.contact_candidates else None)

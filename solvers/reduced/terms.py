@@ -1,15 +1,17 @@
-"""The reduced backend's evaluation of the body terms (`solvers.physics.terms.BodyTerm`: inertia, gravity,
-elasticity, viscosity) in the latent coordinates of a `solvers.reduced.solver.ReducedSolver`: one `BodyEvaluation`
-per term class, in the table `EVALUATIONS` (`@EVALUATIONS.register(TermClass)`). A body term without an entry is
-evaluated from its numpy reference (`ReferenceEvaluation`, the table's default): exact, but a full-mesh evaluation
-per call; a dedicated evaluation makes it fast. A body term that is a density over the body (elasticity,
-viscosity) is a `CubatureEvaluation`: a kernel gives its per-tet values at the cubature tets, and the solver sums
-those of every such term before one reduction to the latent coordinates.
+"""The reduced backend's evaluation of the physics terms in the latent coordinates of a
+`solvers.reduced.solver.ReducedSolver`, derived from what each term declares (`solvers.physics.terms`).
+
+A body term (`solvers.physics.terms.BodyTerm`) gets one `BodyEvaluation` (`body_evaluation`): a `VertexTerm`
+(inertia, gravity) in closed form with the reduced mass M_r = W^T M W (`VertexEvaluation`); a `DensityTerm` that
+names a cubature kernel (elasticity, viscosity) at the cubature tets (`KernelCubatureEvaluation`, a
+`CubatureEvaluation`: the solver sums the per-tet values of every such term before one reduction to the latent
+coordinates); any other from its numpy reference (`ReferenceEvaluation`): exact, but a full-mesh evaluation per
+call.
 
 The point terms (`solvers.physics.terms.PointTerm`: contact, damping, friction) are evaluated at the contact sample
-points the solver picks (`PointEvaluations`): each by its `PointLaunch` in the table `POINT_LAUNCHES`, the built-in
-ones by the full-space solver's warp kernels (solvers/kernels.py, on the CPU, into shared buffers: one launch
-per term), any other by its numpy `at_points` (`ReferencePointLaunch`, the table's default)."""
+points the solver picks (`PointEvaluations`): each by its `PointLaunch` (`point_launch`), a term that names a warp
+kernel by it (the full-space solver's kernels, on the CPU, into shared buffers: one launch per term,
+`KernelLaunch`), any other by its numpy `at_points` (`ReferencePointLaunch`)."""
 
 from __future__ import annotations
 
@@ -20,14 +22,9 @@ import numpy as np
 import warp as wp
 
 from frictionbench.solvers import kernels as shared
-from frictionbench.solvers.physics.contact import BarrierContact, ContactDamping, PenaltyContact
-from frictionbench.solvers.physics.friction import Friction
-from frictionbench.solvers.physics.inertia import Gravity, Inertia
-from frictionbench.solvers.physics.material import Elasticity
-from frictionbench.solvers.physics.terms import Evaluation, PointTerm, StepData, Term, TermTable
-from frictionbench.solvers.physics.viscosity import Viscosity
+from frictionbench.solvers.physics.terms import DensityTerm, Evaluation, PointTerm, StepData, Term, VertexTerm
 from frictionbench.solvers.reduced import kernels as K
-from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
+from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp, kernel_inputs, kernel_named
 
 if TYPE_CHECKING:
     from frictionbench.solvers.reduced.solver import ReducedSolver, ReducedStep, _PointSet
@@ -55,7 +52,7 @@ class ReferenceEvaluation(BodyEvaluation):
     x = X + W q, with the step's constants decoded likewise (x_hat, x_lag and x_bar from q_hat, q^n and q_bar):
     E(x), W^T g and W^T H W, and at the projected-gradient scheme's sample vertices the full gradient's rows there.
     Exact, but slow: every call decodes q and evaluates the term over the full mesh (and the Hessian's product costs
-    O(nnz(H) r + n r^2)); a dedicated `BodyEvaluation` in `EVALUATIONS` (as the built-in terms have) makes it fast."""
+    O(nnz(H) r + n r^2)); a term of a kind with an evaluation of its own (`body_evaluation`) is fast."""
 
     def __init__(self, rs: ReducedSolver, term: Term) -> None:
         super().__init__(rs, term)
@@ -87,40 +84,50 @@ class ReferenceEvaluation(BodyEvaluation):
         return self.term.gradient(self.rs.model, self._step_data(st), self._positions(q))[self.rs.samples.vertices]
 
 
-#: The reduced evaluation of each body term class (`EVALUATIONS.build(rs, body_terms)`: one per term; a term
-#: without one gets `ReferenceEvaluation`).
-EVALUATIONS: TermTable[BodyEvaluation] = TermTable("reduced evaluation (solvers.reduced.terms.EVALUATIONS)",
-                                                   default=ReferenceEvaluation)
+def body_evaluation(rs: ReducedSolver, term: Term) -> BodyEvaluation:
+    """The evaluation of the body term `term` on `rs`, by the term's kind and the kernels it names."""
+    if isinstance(term, VertexTerm):
+        return VertexEvaluation(rs, term)
+    if isinstance(term, DensityTerm) and term.kernels is not None and term.kernels.cubature is not None:
+        return KernelCubatureEvaluation(rs, term)
+    return ReferenceEvaluation(rs, term)
 
 
-@EVALUATIONS.register(Inertia)
-class _Inertia(BodyEvaluation):
-    def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """1/(2 h_eff^2) (q - q_hat)^T M_r (q - q_hat), M_r = W^T M W."""
-        M_r, d, h = self.rs.reduced.M_r, q - st.q_hat, st.h_eff
-        E = 0.5 / h**2 * float(d @ M_r @ d)
-        return E, (M_r @ d / h**2 if order >= 1 else None), (M_r / h**2 if order == 2 else None)
+class VertexEvaluation(BodyEvaluation):
+    """A `VertexTerm` sum_i m_i (|x_i - y_i|^2 / (2 tau^2) - a . x_i) in the latent coordinates:
+    (q - q_y)^T M_r (q - q_y) / (2 tau^2) - a_r . q with M_r = W^T M W, q_y the target's latent coordinates and the
+    reduced force a_r = sum_i m_i W_i^T a (r,) [N], kept; tau^2 = inf: the linear part alone."""
 
-    def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
-        """w_i (u_i - u_hat_i) / h_eff^2 with the sample vertices' cubature masses w_i."""
-        return self.rs.samples.weight[:, None] * ((u - u_hat) / st.h_eff**2)
+    #: The latent coordinates of each target (`VertexTerm.target`) in a `ReducedStep`.
+    TARGETS = {"x_hat": "q_hat", "x_lag": "q_prev", "x_bar": "q_bar"}
 
-
-@EVALUATIONS.register(Gravity)
-class _Gravity(BodyEvaluation):
-    """Keeps the reduced weight g_r = sum_i m_i W_i^T g (r,) [N]."""
-
-    def __init__(self, rs: ReducedSolver, term: Term) -> None:
+    def __init__(self, rs: ReducedSolver, term: VertexTerm) -> None:
         super().__init__(rs, term)
-        self.g_r = np.einsum("n,nak,a->k", rs.model.mass, rs.reduced.W, rs.model.gravity)
+        self.a = term.acceleration(rs.model)
+        self.a_r = np.einsum("n,nak,a->k", rs.model.mass, rs.reduced.W, self.a)
+        self.target = self.TARGETS[term.target]
 
     def reduced(self, q: np.ndarray, st: ReducedStep, order: int) -> Evaluation:
-        """-g_r . q."""
-        return -float(self.g_r @ q), (-self.g_r if order >= 1 else None), None
+        """(q - q_y)^T M_r (q - q_y) / (2 tau^2) - a_r . q, its gradient and Hessian M_r / tau^2."""
+        tau2 = self.term.tau2(self.rs.model, st.h_eff, True)
+        if not np.isfinite(tau2):
+            return -float(self.a_r @ q), (-self.a_r if order >= 1 else None), None
+        M_r, d = self.rs.reduced.M_r, q - getattr(st, self.target)
+        E = 0.5 / tau2 * float(d @ M_r @ d) - float(self.a_r @ q)
+        return E, (M_r @ d / tau2 - self.a_r if order >= 1 else None), (M_r / tau2 if order == 2 else None)
 
     def sample_gradient(self, q: np.ndarray, st: ReducedStep, u: np.ndarray, u_hat: np.ndarray) -> np.ndarray:
-        """-w_i g with the sample vertices' cubature masses w_i."""
-        return self.rs.samples.weight[:, None] * -self.rs.model.gravity
+        """w_i ((u_i - u_y_i) / tau^2 - a) with the sample vertices' cubature masses w_i (u_y: u_hat for the target
+        x_hat, else decoded)."""
+        tau2 = self.term.tau2(self.rs.model, st.h_eff, True)
+        w = self.rs.samples.weight[:, None]
+        if not np.isfinite(tau2):
+            return w * -self.a
+        if self.target == "q_hat":
+            u_y = u_hat
+        else:
+            u_y = self.rs.reduced.decode(getattr(st, self.target))[self.rs.samples.vertices]
+        return w * ((u - u_y) / tau2 - self.a)
 
 
 TetValues = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
@@ -156,27 +163,24 @@ class CubatureEvaluation(BodyEvaluation):
         return self.rs.samples.forces(rm.wV, self.at_tets(rm.deformation_gradients(q), st, K.STRESS)[1])
 
 
-@EVALUATIONS.register(Elasticity)
-class _Elasticity(CubatureEvaluation):
-    def at_tets(self, F: np.ndarray, st: ReducedStep, mode: int) -> TetValues:
-        """Stable Neo-Hookean: Psi, P and the factor of (dP/dF)_+ (`kernels.snh_evaluate`, one launch)."""
-        m = self.rs.model
-        return K.snh_evaluate(F, m.mu_snh, m.lam_snh, mode, self.rs.reduced.device)
+class KernelCubatureEvaluation(CubatureEvaluation):
+    """A `DensityTerm` by the cubature kernel it names (`TetKernels.cubature`, `kernels.evaluate`: one launch) with
+    its `kernel_parameters` at the step's h_eff; a kernel that takes F_bar gets F_c(q_bar), computed once a step."""
 
-
-@EVALUATIONS.register(Viscosity)
-class _Viscosity(CubatureEvaluation):
-    def __init__(self, rs: ReducedSolver, term: Term) -> None:
+    def __init__(self, rs: ReducedSolver, term: DensityTerm) -> None:
         super().__init__(rs, term)
+        self.kernel = kernel_named(term.kernels.cubature, K.__name__)
+        self.takes_bar = "F_bar" in (arg.label for arg in self.kernel.adj.args)
         self._bar: tuple[ReducedStep | None, np.ndarray | None] = (None, None)  # a step and its F_c(q_bar)
 
     def at_tets(self, F: np.ndarray, st: ReducedStep, mode: int) -> TetValues:
-        """Kelvin-Voigt at F against F_c(q_bar) (computed once a step), c = eta / h_eff: the density, P and the
-        15-row factor of its projected Hessian (`kernels.viscous_evaluate`, one launch)."""
-        rm = self.rs.reduced
-        if self._bar[0] is not st:
-            self._bar = st, rm.deformation_gradients(st.q_bar)
-        return K.viscous_evaluate(F, self._bar[1], self.rs.model.viscosity / st.h_eff, mode, rm.device)
+        rm, inputs = self.rs.reduced, {"F": F}
+        if self.takes_bar:
+            if self._bar[0] is not st:
+                self._bar = st, rm.deformation_gradients(st.q_bar)
+            inputs["F_bar"] = self._bar[1]
+        return K.evaluate(self.kernel, inputs, self.term.kernel_parameters(self.rs.model, st.h_eff), mode,
+                          self.term.kernels.rows, rm.device)
 
 
 # ----- the point terms ---------------------------------------------------------------------------------------------
@@ -199,7 +203,7 @@ class PointEvaluations:
         self.normal = wp.vec3d(*(rs.model.plane_normal if rs.model.plane_normal is not None else np.zeros(3)))
         self.views = {name: getattr(self, name).numpy()
                       for name in ("x", "x_lag", "x_bar", "grad", "area", "fn", "values", "energy")}
-        self.launches = POINT_LAUNCHES.build(self, terms)
+        self.launches = [point_launch(self, term) for term in terms]
         self._loaded: _PointSet | None = None  # the point set whose data the buffers hold
         self.k, self.has_fn = 0, False  # its size; whether it carries a lagged pressure
 
@@ -256,20 +260,22 @@ class ReferencePointLaunch(PointLaunch):
 
 
 class KernelLaunch(PointLaunch):
-    """A point term by a warp kernel of solvers/kernels.py whose arguments `inputs` names, recorded once
-    (`RecordedLaunch`) and relaunched on the first k points with the step h and the mode set."""
-
-    kernel: wp.Kernel
+    """A point term by the warp kernel it names (`PointTerm.kernel`), its arguments by name from the buffers (the
+    points and their diagonal blocks: the first k rows, `ids`), the term's `kernel_parameters`, h = 1 and mode = 0
+    until a launch sets them: recorded once (`RecordedLaunch`) and relaunched on the first k points with the step h
+    and the mode set."""
 
     def __init__(self, points: PointEvaluations, term: PointTerm) -> None:
         super().__init__(points, term)
-        self.recorded = RecordedLaunch(self.kernel, 1, self.inputs(points), "cpu")
+        kernel = kernel_named(term.kernel, shared.__name__)
+        p = points
+        buffers = {"x": p.x, "x_lag": p.x_lag, "x_bar": p.x_bar, "points": p.ids, "area": p.area, "fn": p.fn,
+                   "normal": p.normal, "diag": p.ids, "grad": p.grad, "values": p.values, "energy": p.energy,
+                   "h": 1.0, "mode": 0}
+        inputs = kernel_inputs(kernel, {**term.kernel_parameters(p.model), **buffers}, term.name)
+        self.recorded = RecordedLaunch(kernel, 1, inputs, "cpu")
         labels = self.recorded.labels
         self.h_at, self.mode_at = labels.index("h") if "h" in labels else None, labels.index("mode")
-
-    @abstractmethod
-    def inputs(self, p: PointEvaluations) -> list:
-        """The kernel's arguments on p's buffers (h = 1 and mode = 0 until a launch sets them)."""
 
     def launch(self, p: PointEvaluations, h: float, mode: int) -> None:
         if p.k == 0:
@@ -280,37 +286,6 @@ class KernelLaunch(PointLaunch):
         self.recorded.launch(p.k)
 
 
-#: The point evaluation of each point term class (`POINT_LAUNCHES.build(points, point_terms)`; a term without one
-#: gets `ReferencePointLaunch`).
-POINT_LAUNCHES: TermTable[PointLaunch] = TermTable("reduced point launch (solvers.reduced.terms.POINT_LAUNCHES)",
-                                                   default=ReferencePointLaunch)
-
-
-@POINT_LAUNCHES.register(PenaltyContact, ContactDamping)
-class _Penalty(KernelLaunch):
-    kernel = shared.penalty_contact_kernel
-
-    def inputs(self, p: PointEvaluations) -> list:
-        m = p.model
-        return [p.x, p.x_lag, p.x_bar, p.ids, p.area, p.normal, m.plane_offset, self.term.ke(m), self.term.kd(m), 1.0,
-                p.ids, p.grad, p.values, p.energy, 0]
-
-
-@POINT_LAUNCHES.register(BarrierContact)
-class _Barrier(KernelLaunch):
-    kernel = shared.barrier_contact_kernel
-
-    def inputs(self, p: PointEvaluations) -> list:
-        m, c = p.model, p.model.contact
-        return [p.x, p.ids, p.area, p.normal, m.plane_offset, c.barrier_stiffness, c.barrier_distance, p.ids, p.grad,
-                p.values, p.energy, 0]
-
-
-@POINT_LAUNCHES.register(Friction)
-class _Friction(KernelLaunch):
-    kernel = shared.friction_kernel
-
-    def inputs(self, p: PointEvaluations) -> list:
-        m = p.model
-        return [p.x, p.x_bar, p.ids, p.area, p.fn, p.normal, m.friction, m.contact.friction_stiffness, 1.0, p.ids,
-                p.grad, p.values, p.energy, 0]
+def point_launch(points: PointEvaluations, term: PointTerm) -> PointLaunch:
+    """The launch of the point term `term` on `points`: by its kernel where it names one, else its reference."""
+    return (KernelLaunch if term.kernel is not None else ReferencePointLaunch)(points, term)
