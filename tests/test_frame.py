@@ -14,10 +14,13 @@ import pytest
 from frictionbench.bench.runner import Variant, run_suite
 from frictionbench.scenarios.spec import Initial, MeshSpec, Plane, Scenario, TimeSpec
 from frictionbench.solvers.build import build_model, initial_state, rotation_matrix
-from frictionbench.solvers.reduced.bases import (affine_basis, body_frame_displacements, body_rotation, project,
-                                                 rotated_basis, rotation_angle, smooth_basis)
+from frictionbench.scenarios.meshes import load_mesh
+from frictionbench.solvers.reduced.bases import (affine_basis, body_frame_displacements, body_rotation,
+                                                 interpolate_basis, project, rotated_basis, rotation_angle,
+                                                 smooth_basis)
 from frictionbench.solvers.reduced.frame import FrameSolver, check_affine_columns
 from frictionbench.solvers.reduced.modal import modal_basis
+from frictionbench.solvers.reduced.pod import PodFrame
 from frictionbench.solvers.reduced.solver import ReducedSolver
 from frictionbench.solvers.simulate import simulate
 
@@ -124,6 +127,20 @@ def test_turning_the_frame_keeps_the_momentum_and_follows_the_spin(block):
     world, _ = _run(model, ReducedSolver(model, W))
     err = lambda t: float(np.sqrt(np.mean(np.sum((t.x - full.x) ** 2, axis=-1)))) / model.L  # noqa: E731
     assert err(traj) < 0.6 * err(world)
+
+
+def test_body_frame_pod_on_another_mesh_keeps_its_affine_columns_exact():
+    """Interpolated onto the other cheese mesh (some of whose vertices lie outside the training mesh, where the
+    interpolation's weights are clamped) the affine columns are affine no more; `PodFrame.carried` makes each the
+    closest affine field, within 2% of it."""
+    a, b = load_mesh(MeshSpec("cheese", "coarse")), load_mesh(MeshSpec("cheese", "coarse_alt"))
+    W = interpolate_basis(smooth_basis(a.X, 20, 0.01), a.X, a.tets, b.X)
+    with pytest.raises(ValueError, match="affine fields"):
+        check_affine_columns(W, b.X)
+    carried = PodFrame.carried(W, build_model(Scenario(name="rest", plane=None), b))
+    check_affine_columns(carried, b.X)
+    assert np.abs(carried[:, :, :12] - W[:, :, :12]).max() < 0.02 * np.abs(W[:, :, :12]).max()
+    assert np.array_equal(carried[:, :, 12:], W[:, :, 12:])
 
 
 def test_bad_frame_angle_is_refused(block):

@@ -13,7 +13,7 @@ import numpy as np
 
 from frictionbench.scenarios.atomic import atomic_open, write_json_atomic
 from frictionbench.solvers.model import Model
-from frictionbench.solvers.reduced.bases import affine_basis, interpolate_basis, pod_basis
+from frictionbench.solvers.reduced.bases import N_AFFINE, affine_basis, interpolate_basis, pod_basis, project
 from frictionbench.solvers.reduced.plugin import (COMMON_PARAMETERS, FRAME_PARAMETERS, PluginError, ReducedPlugin,
                                                   artefact_key, cubature_artefact, cubature_on_mesh, stored_cubature,
                                                   training_displacements)
@@ -75,6 +75,11 @@ class Pod(ReducedPlugin):
     #: The model the modes were last put on and (W, info) there (`_modes_on`).
     _modes: tuple[Model, tuple[np.ndarray, dict]] | None = None
 
+    @staticmethod
+    def carried(W: np.ndarray, model: Model) -> np.ndarray:
+        """The modes W (n, 3, r) interpolated at `model`'s vertices, as this solver takes them there (as they are)."""
+        return W
+
     def _modes_on(self, model: Model) -> tuple[np.ndarray, dict]:
         """The stored modes W (n, 3, r) on `model`'s mesh, interpolated at its vertices off the training mesh
         (`interpolate_basis`), and the run's stats of them (`train_s`; `basis_mesh` where interpolated); loaded and
@@ -90,7 +95,7 @@ class Pod(ReducedPlugin):
                 raise ValueError(f"stored without its training mesh's tets, so it cannot be carried to this mesh "
                                  f"({model.n} vertices, the training mesh {len(X)}); run the matrix again to store "
                                  f"them")
-            W = interpolate_basis(W, X, tets, model.X)
+            W = self.carried(interpolate_basis(W, X, tets, model.X), model)
             info["basis_mesh"] = f"interpolated from the training mesh ({len(X)} vertices)"
         self._modes = (model, (W, info))
         return W, info
@@ -112,6 +117,17 @@ class PodFrame(Pod):
         if not self.params["affine"]:
             raise PluginError(f"{self.name}: affine = false; the body's frame needs the 12 affine fields in the basis")
         return super().prepare(shape, trajectories, out_dir, suite)
+
+    @staticmethod
+    def carried(W: np.ndarray, model: Model) -> np.ndarray:
+        """The interpolated modes with their first 12 columns made exactly affine on this mesh (each the affine field
+        closest to it, so that the latent coordinates keep their meaning): the interpolation reproduces an affine
+        field only inside the training mesh (outside, its weights are clamped), and the frame needs them exact."""
+        A = affine_basis(model.X)
+        C = project(A, W[:, :, :N_AFFINE].transpose(2, 0, 1))  # (12, 12): column k of W ~ A C[k]
+        W = W.copy()
+        W[:, :, :N_AFFINE] = np.einsum("naj,kj->nak", A, C)
+        return W
 
 
 def _same_mesh(X: np.ndarray, X_run: np.ndarray) -> bool:
