@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 from frictionbench.analysis import schema
+from frictionbench.analysis.metrics import ComparedRun
 from frictionbench.analysis.rows import collect_rows
 from frictionbench.analysis.schema import (COLUMNS, Column, docs_table, docs_with_table, flag, is_missing, number,
                                            stability_metrics, truthy)
@@ -26,9 +27,9 @@ from frictionbench.solvers.trajectory import Trajectory
 DESIGN = Path(__file__).resolve().parents[1] / "docs" / "design.md"
 
 
-def toy_drop(ref: Trajectory, traj: Trajectory, scenario: Scenario) -> float:
+def toy_drop(run: ComparedRun) -> float:
     """How far the run's centre ends below the reference's [m]."""
-    return float(ref.x[-1, :, 1].mean() - traj.x[-1, :, 1].mean())
+    return float(run.ref.x[-1, :, 1].mean() - run.traj.x[-1, :, 1].mean())
 
 
 @pytest.fixture
