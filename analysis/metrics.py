@@ -5,18 +5,23 @@ length scale L = |max(X) - min(X)|, the diagonal of the rest mesh's bounding box
 
 Shapes: F frames, n vertices, m tets, r basis columns. Positions x (F, n, 3) [m], times t (F,) [s],
 vertex masses (n,) [kg]. Where a reference and a trajectory store different frame times, the metrics compare
-the frames whose times they share (`align_frames`); `frames_compared` in `compare` says how many there were.
+the frames whose times they share (`align_frames`); the column `frames_compared` says how many there were.
+
+The schema's computed columns (`analysis.schema.Column.compute`) are functions of one `ComparedRun`: a finished
+run, its reference and its scenario, with the inputs they share computed once; the columns one computation gives
+together (`stick_cells`, `inverted_cells`, `creep_cells`) take their cells from it by name.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
-from frictionbench.analysis.schema import COLUMNS
 from frictionbench.scenarios.meshes import TetMesh, bbox_diagonal
-from frictionbench.scenarios.spec import GRAVITY, Contact, Material, Plane
+from frictionbench.scenarios.spec import GRAVITY, Contact, Material, Plane, Scenario
 from frictionbench.solvers.physics.contact import lagged_pressure
 from frictionbench.solvers.physics.friction import creep_speed
 from frictionbench.solvers.physics.inertia import lumped_mass
@@ -25,9 +30,6 @@ from frictionbench.solvers.reduced.bases import body_frame_displacements, projec
 from frictionbench.solvers.trajectory import Trajectory
 
 ArrayLike3 = Sequence[float] | np.ndarray
-
-#: Keys of `compare`'s result, in the order the results table shows them: the schema's columns computed here.
-METRIC_KEYS: tuple[str, ...] = tuple(c.name for c in COLUMNS.values() if c.source.startswith(f"{__name__}."))
 
 
 def unit_plane(normal: ArrayLike3, offset: float = 0.0) -> tuple[np.ndarray, float]:
@@ -391,67 +393,74 @@ def energy_ratio_max(traj: Trajectory, material: Material, gravity: ArrayLike3 =
     return float(np.max(E) / E[0])
 
 
-def stability(traj: Trajectory, *, plane: Plane | None = None, material: Material | None = None,
-              gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None,
-              contact: Contact | None = None) -> dict[str, float | int | bool | None]:
-    """Stability metrics of one trajectory (no reference needed): finite, max_penetration_rel, inverted_tets
-    (ever), inverted_tets_frame_max, inverted_tets_final, volume_ratio_final, energy_ratio_max, and, for a body
-    on a plane with friction, creep_speed_law and creep_ratio (the end speed along the plane over the law's
-    creep speed: about 1 for a body the law holds, inf for one it cannot hold; None on level ground). Metrics
-    whose input is missing are None."""
-    inverted, inverted_frame = inverted_tets(traj)
-    ok = finite(traj)
-    row: dict[str, float | int | bool | None] = {
-        "finite": ok,
-        "max_penetration_rel": None if plane is None else max_penetration_rel(traj, plane.normal, plane.offset),
-        "inverted_tets": inverted,
-        "inverted_tets_frame_max": inverted_frame,
-        "inverted_tets_final": inverted_tets_in_frame(traj),
-        "volume_ratio_final": volume_ratio(traj) if ok else None,
-        "energy_ratio_max": None if material is None else energy_ratio_max(traj, material, gravity, masses),
-        "creep_speed_law": None, "creep_ratio": None,
-    }
-    if ok and plane is not None and plane.friction > 0 and contact is not None and material is not None:
-        law = creep_speed_law(traj, plane, contact, material, gravity)
-        row["creep_speed_law"] = law
-        if law > 0:  # no creep to compare with on level ground
-            row["creep_ratio"] = stick(traj, plane.normal, masses=masses)[1] / law
-    return row
+@dataclass(frozen=True, eq=False)
+class ComparedRun:
+    """A finished run and the reference it is compared with: what every computed column of the schema takes
+    (`analysis.schema.Column.compute`, evaluated by `analysis.schema.computed_cells`).
 
-
-def compare(ref: Trajectory, traj: Trajectory, *, plane: Plane | None = None, material: Material | None = None,
-            gravity: ArrayLike3 = GRAVITY, masses: np.ndarray | None = None,
-            basis: np.ndarray | None = None, contact: Contact | None = None) -> dict[str, float | int | bool | None]:
-    """All metrics of one results row (keys `METRIC_KEYS`), `traj` against the reference `ref` on the same mesh.
-
-    masses (n,) weight the centres of mass and energies; by default the lumped masses of `material` if given,
-    else uniform. plane (normal, offset) enables slide, stick and penetration metrics; material the energy
-    ratio; contact (with plane and material) the creep metrics; basis (n, 3, r) the Euclidean projection error of the reference (a lower bound of pos_rmse_rel for
-    any trajectory x = X + W q). Metrics without their input are None.
+    ref, traj: the reference's and the run's trajectories on the same mesh (F frames, n vertices); scenario: the
+    run's; contact_stiffness: the contact law's normal stiffness the run resolved [Pa/m] (its stats'
+    `contact_stiffness`; None where not known: no creep metrics). The inputs several metrics share (`masses`,
+    `contact`) are computed once per run, and so is a computation that gives several columns together (`once`).
     """
-    if masses is None and material is not None:
-        masses = body_masses(ref, material, None)
-    i_ref, _ = align_frames(ref.t, traj.t)
-    row: dict[str, float | int | bool | None] = {
-        "frames_compared": int(i_ref.size),
-        "pos_rmse_rel": pos_rmse_rel(ref, traj),
-        "pos_max_rel": pos_max_rel(ref, traj),
-        "com_err_rel": com_err_rel(ref, traj, masses),
-        "final_err_rel": final_err_rel(ref, traj),
-        "slide_err_rel": None, "proj_rmse_rel": None,
-        "stick": None, "stick_ref": None, "stick_agree": None, "end_speed": None, "end_speed_ref": None,
-    }
-    if plane is not None:
-        L = bbox_diagonal(ref.X)
-        row["slide_err_rel"] = slide_err_rel(ref, traj, plane.normal, masses)
-        # the reference's creep speed judges both runs (a body the law holds creeps at it)
-        creep = (creep_speed_law(ref, plane, contact, material, gravity)
-                 if contact is not None and material is not None and plane.friction > 0 and finite(ref) else None)
-        kw = {"plane_offset": plane.offset, "masses": masses, "creep_speed": creep}
-        row["stick"], row["end_speed"] = stick(traj, plane.normal, L, **kw)
-        row["stick_ref"], row["end_speed_ref"] = stick(ref, plane.normal, L, **kw)
-        row["stick_agree"] = row["stick"] == row["stick_ref"]
-    if basis is not None:
-        row["proj_rmse_rel"] = proj_rmse_rel(ref, basis, frame=traj.meta.get("basis_frame", "world"))
-    row.update(stability(traj, plane=plane, material=material, gravity=gravity, masses=masses, contact=contact))
-    return row
+
+    ref: Trajectory
+    traj: Trajectory
+    scenario: Scenario
+    contact_stiffness: float | None = None
+    _once: dict = field(default_factory=dict, init=False, repr=False)
+
+    @cached_property
+    def masses(self) -> np.ndarray:
+        """Vertex masses (n,) [kg] weighting centres of mass and energies: the lumped masses of the scenario's
+        material on the reference's rest mesh (`body_masses`)."""
+        return body_masses(self.ref, self.scenario.material, None)
+
+    @cached_property
+    def contact(self) -> Contact | None:
+        """The scenario's contact law with the stiffness the run resolved, the creep metrics' input; None where
+        friction is off or the stiffness is not known."""
+        if not self.scenario.effects.friction or self.contact_stiffness is None:
+            return None
+        return replace(self.scenario.contact, stiffness=self.contact_stiffness)
+
+    def once(self, group: Callable[[ComparedRun], dict[str, object]]) -> dict[str, object]:
+        """group(self) -> {column: value}, computed on the first call for this run and kept: the cells of the
+        columns one computation gives together (`analysis.schema.together`)."""
+        if group not in self._once:
+            self._once[group] = group(self)
+        return self._once[group]
+
+
+def stick_cells(run: ComparedRun) -> dict[str, object]:
+    """stick, stick_ref, stick_agree, end_speed [m/s] and end_speed_ref [m/s]: `stick` of the run and of its
+    reference, both judged with the reference's L and masses and, where friction acts, the friction law's creep
+    speed for the reference as it lies at the end (a body the law holds creeps at it); None without a plane."""
+    plane = run.scenario.plane
+    if plane is None:
+        return dict.fromkeys(("stick", "stick_ref", "stick_agree", "end_speed", "end_speed_ref"))
+    creep = (creep_speed_law(run.ref, plane, run.contact, run.scenario.material, run.scenario.gravity)
+             if run.contact is not None and plane.friction > 0 and finite(run.ref) else None)
+    kw = {"plane_offset": plane.offset, "masses": run.masses, "creep_speed": creep}
+    at_rest, speed = stick(run.traj, plane.normal, bbox_diagonal(run.ref.X), **kw)
+    at_rest_ref, speed_ref = stick(run.ref, plane.normal, bbox_diagonal(run.ref.X), **kw)
+    return {"stick": at_rest, "stick_ref": at_rest_ref, "stick_agree": at_rest == at_rest_ref, "end_speed": speed,
+            "end_speed_ref": speed_ref}
+
+
+def inverted_cells(run: ComparedRun) -> dict[str, object]:
+    """inverted_tets and inverted_tets_frame_max [count] of the run (`inverted_tets`, one pass over its frames)."""
+    ever, frame_max = inverted_tets(run.traj)
+    return {"inverted_tets": ever, "inverted_tets_frame_max": frame_max}
+
+
+def creep_cells(run: ComparedRun) -> dict[str, object]:
+    """creep_speed_law [m/s], the friction law's creep speed for the run as it lies at the end (`creep_speed_law`),
+    and creep_ratio [-], its end_speed over that (about 1 for a body the law holds, 0 for one it cannot hold: creep
+    speed inf; None on level ground, creep speed 0); both None unless the run is finite and on a plane with
+    friction with a known contact (`ComparedRun.contact`)."""
+    plane = run.scenario.plane
+    if run.contact is None or plane is None or not plane.friction > 0 or not finite(run.traj):
+        return {"creep_speed_law": None, "creep_ratio": None}
+    law = creep_speed_law(run.traj, plane, run.contact, run.scenario.material, run.scenario.gravity)
+    return {"creep_speed_law": law, "creep_ratio": run.once(stick_cells)["end_speed"] / law if law > 0 else None}

@@ -17,10 +17,10 @@ from tqdm import tqdm
 
 from frictionbench.analysis.curves import with_curve_floors
 from frictionbench.analysis.derived import with_ref_dt_change, with_remesh_ratio
-from frictionbench.analysis.metrics import compare, pos_rmse_rel, proj_rmse_rel
+from frictionbench.analysis.metrics import ComparedRun, pos_rmse_rel, proj_rmse_rel
 from frictionbench.analysis.records import LadderRuns, RunRecord, RunTask, Trajectories
 from frictionbench.analysis.outcomes import ladder_outcome_columns, outcome_cells, outcome_scene, outcome_values
-from frictionbench.analysis.schema import computed
+from frictionbench.analysis.schema import computed_cells
 from frictionbench.analysis.timescales import SceneTimescales, scene_columns
 from frictionbench.analysis.transfer import transfer_to_mesh
 from frictionbench.analysis.truth import (TruthEstimate, assess_ladder, certified_horizon, level_ratio,
@@ -222,13 +222,11 @@ def run_timing(stats: dict, ref_stats: dict, dt: float) -> dict:
 
 
 def run_metrics(ref: Trajectory | None, traj: Trajectory | None, sc: Scenario, stats: dict) -> dict:
-    """Metric columns of one row (a reduced run's trajectory carries its basis, for the projection error); a failed
-    run (diverged, or no trajectory) gets `status = failed`, its reason and no accuracy metrics (a truncated
-    trajectory would look accurate). The schema's computed columns (`analysis.schema.computed`) follow `compare`'s."""
+    """Metric columns of one row: a finished run's status and every computed column of the schema
+    (`analysis.schema.computed_cells`) against its reference `ref`, in the scenario `sc` with the contact stiffness
+    the run resolved (a reduced run's trajectory carries its basis, for the projection error); a failed run
+    (diverged, or no trajectory) gets `status = failed`, its reason and no accuracy metrics (a truncated trajectory
+    would look accurate)."""
     if traj is None or ref is None or stats.get("failed"):
         return {"status": "failed", "failure": stats.get("failure") or "no trajectory", "finite": False}
-    contact = replace(sc.contact, stiffness=stats["contact_stiffness"])  # the stiffness the run resolved
-    return ({"status": "ok", "failure": ""} | compare(ref, traj, plane=sc.plane, material=sc.material,
-                                                      gravity=sc.gravity, basis=traj.basis,
-                                                      contact=contact if sc.effects.friction else None)
-            | {c.name: c.compute(ref, traj, sc) for c in computed()})
+    return {"status": "ok", "failure": ""} | computed_cells(ComparedRun(ref, traj, sc, stats["contact_stiffness"]))

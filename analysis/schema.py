@@ -6,9 +6,10 @@ from `COLUMNS`: the table's column order (`analysis.table`), the comparison rule
 the stability metrics of the headline, the report and the comparison, the report's column groups, the columns
 `bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
 
-A metric needs only its declaration here: a `Column` with `compute` (a function of the run's reference, the run's
-trajectory and its scenario) is evaluated on every finished run by row building (`analysis.rows.run_metrics`).
-Plug-ins and tests add columns with `register`.
+A metric needs only its declaration here: a `Column` with `compute` (a function of the finished run,
+`analysis.metrics.ComparedRun`: its trajectory, its reference's, its scenario) is evaluated on every finished run by
+row building (`computed_cells`, from `analysis.rows.run_metrics`); columns one computation gives together are declared
+with `together`. Plug-ins and tests add columns with `register`.
 
 Cells are read by `is_missing`, `number` and `flag` (and `truthy`), whether they come from rows built in memory or
 from results.csv as pandas reads it back.
@@ -18,9 +19,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 
 import pandas as pd
+
+from frictionbench.analysis import metrics
 
 #: What a column is: identity (which row: the key of a row across result sets), parameter (what ran: scene and
 #: solver settings), accuracy (against a reference or the truth), stability (of the run itself), timing (measured
@@ -56,8 +60,10 @@ class Column:
     source: the dotted name of the function that computes it; placed: True where the table gives it a fixed place
     (the identity columns first, the provenance columns last, the others between, in the order of COLUMNS), False
     where it follows those in the order the rows first hold it (the columns results.csv has always placed so);
-    summary: shown in the report's results table; compute: for a metric computed per run by row building,
-    f(reference, trajectory, scenario) -> value (None: computed where `source` says).
+    summary: shown in the report's results table; compute: for a metric computed per finished run by row
+    building, f(run) -> value, run the `analysis.metrics.ComparedRun` (the run's and its reference's trajectories,
+    its scenario, the inputs metrics share); None where the column is computed elsewhere (`source` says where).
+    Columns one computation gives together are declared with `together`.
     """
 
     name: str
@@ -71,7 +77,7 @@ class Column:
     factor: float | None = None
     placed: bool = True
     summary: bool = False
-    compute: Callable | None = None
+    compute: Callable[[metrics.ComparedRun], object] | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -92,6 +98,17 @@ class Column:
             return f"x{self.factor:g}"
         parts = ([f"{self.rel * 100:g}%"] if self.rel else []) + ([f"{self.abs:g}"] if self.abs else [])
         return ",".join(parts) or "0"
+
+
+def together(group: Callable[[metrics.ComparedRun], dict[str, object]], *columns: Column) -> tuple[Column, ...]:
+    """Columns one computation gives together: `group(run)` -> {column name: value} runs once per run
+    (`ComparedRun.once`), and each column's compute takes its own cell from it."""
+    return tuple(replace(c, compute=partial(_cell, group, c.name)) for c in columns)
+
+
+def _cell(group: Callable[[metrics.ComparedRun], dict[str, object]], name: str, run: metrics.ComparedRun) -> object:
+    """The cell `name` of the columns `group` computes together for `run`."""
+    return run.once(group)[name]
 
 
 def _accuracy(name: str, meaning: str, source: str, **kw) -> Column:
@@ -228,43 +245,62 @@ COLUMNS: dict[str, Column] = {c.name: c for c in (
     Column("failure", "stability", unit="text", meaning="why a run failed (the exception), '' otherwise",
            source="frictionbench.analysis.rows.run_metrics", summary=True),
     Column("frames_compared", "accuracy", unit="count", meaning="frames whose times the run and its reference share",
-           source=f"{_METRICS}.compare"),
+           source=f"{_METRICS}.align_frames",
+           compute=lambda run: int(metrics.align_frames(run.ref.t, run.traj.t)[0].size)),
     _accuracy("pos_rmse_rel", "RMS over frames and vertices of the position error against the same-dt reference",
-              f"{_METRICS}.pos_rmse_rel", summary=True),
-    _accuracy("pos_max_rel", "largest per-frame RMS position error", f"{_METRICS}.pos_max_rel"),
+              f"{_METRICS}.pos_rmse_rel", summary=True, compute=lambda run: metrics.pos_rmse_rel(run.ref, run.traj)),
+    _accuracy("pos_max_rel", "largest per-frame RMS position error", f"{_METRICS}.pos_max_rel",
+              compute=lambda run: metrics.pos_max_rel(run.ref, run.traj)),
     _accuracy("com_err_rel", "largest distance between the mass-weighted centres", f"{_METRICS}.com_err_rel",
-              summary=True),
-    _accuracy("final_err_rel", "RMS position error at the last frame", f"{_METRICS}.final_err_rel", summary=True),
+              summary=True, compute=lambda run: metrics.com_err_rel(run.ref, run.traj, run.masses)),
+    _accuracy("final_err_rel", "RMS position error at the last frame", f"{_METRICS}.final_err_rel", summary=True,
+              compute=lambda run: metrics.final_err_rel(run.ref, run.traj)),
     _accuracy("slide_err_rel", "error of the centre's travel along the plane over the reference's (floor 1% of L)",
-              f"{_METRICS}.slide_err_rel", unit="-", summary=True),
+              f"{_METRICS}.slide_err_rel", unit="-", summary=True,
+              compute=lambda run: None if run.scenario.plane is None else metrics.slide_err_rel(
+                  run.ref, run.traj, run.scenario.plane.normal, run.masses)),
     _accuracy("proj_rmse_rel", "the reference projected onto the run's subspace: the least pos_rmse_rel in it",
-              f"{_METRICS}.proj_rmse_rel", summary=True),
-    Column("stick", "accuracy", unit="flag", meaning="the body ends at rest on the plane", source=f"{_METRICS}.stick"),
-    Column("stick_ref", "accuracy", unit="flag", meaning="the reference ends at rest on the plane",
-           source=f"{_METRICS}.stick"),
-    Column("stick_agree", "accuracy", "true", "flag", "stick and stick_ref agree", f"{_METRICS}.stick_agree",
-           summary=True),
-    Column("end_speed", "accuracy", unit="m/s", meaning="centre speed along the plane over the last 10% of the run",
-           source=f"{_METRICS}.stick"),
-    Column("end_speed_ref", "accuracy", unit="m/s", meaning="the reference's end_speed", source=f"{_METRICS}.stick"),
+              f"{_METRICS}.proj_rmse_rel", summary=True,
+              compute=lambda run: None if run.traj.basis is None else metrics.proj_rmse_rel(
+                  run.ref, run.traj.basis, frame=run.traj.meta.get("basis_frame", "world"))),
+    *together(metrics.stick_cells,
+              Column("stick", "accuracy", unit="flag", meaning="the body ends at rest on the plane",
+                     source=f"{_METRICS}.stick"),
+              Column("stick_ref", "accuracy", unit="flag", meaning="the reference ends at rest on the plane",
+                     source=f"{_METRICS}.stick"),
+              Column("stick_agree", "accuracy", "true", "flag", "stick and stick_ref agree", f"{_METRICS}.stick_agree",
+                     summary=True),
+              Column("end_speed", "accuracy", unit="m/s",
+                     meaning="centre speed along the plane over the last 10% of the run", source=f"{_METRICS}.stick"),
+              Column("end_speed_ref", "accuracy", unit="m/s", meaning="the reference's end_speed",
+                     source=f"{_METRICS}.stick")),
     Column("finite", "stability", "true", "flag", "every stored position, velocity and latent coordinate is finite",
-           f"{_METRICS}.finite"),
+           f"{_METRICS}.finite", compute=lambda run: metrics.finite(run.traj)),
     Column("max_penetration_rel", "stability", "lower", "L", "deepest surface point below the plane",
-           f"{_METRICS}.max_penetration_rel", **ACCURACY_TOL),
-    Column("inverted_tets", "stability", "lower", "count", "tets with det F <= 0 in some frame",
-           f"{_METRICS}.inverted_tets"),
-    Column("inverted_tets_frame_max", "stability", "lower", "count", "most tets with det F <= 0 in one frame",
-           f"{_METRICS}.inverted_tets"),
+           f"{_METRICS}.max_penetration_rel", **ACCURACY_TOL,
+           compute=lambda run: None if run.scenario.plane is None else metrics.max_penetration_rel(
+               run.traj, run.scenario.plane.normal, run.scenario.plane.offset)),
+    *together(metrics.inverted_cells,
+              Column("inverted_tets", "stability", "lower", "count", "tets with det F <= 0 in some frame",
+                     f"{_METRICS}.inverted_tets"),
+              Column("inverted_tets_frame_max", "stability", "lower", "count", "most tets with det F <= 0 in one frame",
+                     f"{_METRICS}.inverted_tets")),
     Column("inverted_tets_final", "stability", "lower", "count", "tets with det F <= 0 in the last frame",
-           f"{_METRICS}.inverted_tets_in_frame"),
+           f"{_METRICS}.inverted_tets_in_frame", compute=lambda run: metrics.inverted_tets_in_frame(run.traj)),
     Column("volume_ratio_final", "stability", "one", "-", "volume at the end over the rest volume",
-           f"{_METRICS}.volume_ratio", abs=0.002),
+           f"{_METRICS}.volume_ratio", abs=0.002,
+           compute=lambda run: metrics.volume_ratio(run.traj) if metrics.finite(run.traj) else None),
     Column("energy_ratio_max", "stability", "lower", "-", "largest total energy over the initial (> 1: energy grew)",
-           f"{_METRICS}.energy_ratio_max", abs=0.002),
-    Column("creep_speed_law", "stability", unit="m/s", meaning="the friction law's creep speed for the body at the end",
-           source=f"{_METRICS}.creep_speed_law"),
-    Column("creep_ratio", "stability", "lower", "-", "end speed along the plane over creep_speed_law (~1: held)",
-           f"{_METRICS}.stability", rel=0.10, abs=0.01),
+           f"{_METRICS}.energy_ratio_max", abs=0.002,
+           compute=lambda run: metrics.energy_ratio_max(run.traj, run.scenario.material, run.scenario.gravity,
+                                                        run.masses)),
+    *together(metrics.creep_cells,
+              Column("creep_speed_law", "stability", unit="m/s",
+                     meaning="the friction law's creep speed for the body at the end",
+                     source=f"{_METRICS}.creep_speed_law"),
+              Column("creep_ratio", "stability", "lower", "-",
+                     "end speed along the plane over creep_speed_law (~1: held)", f"{_METRICS}.creep_cells",
+                     rel=0.10, abs=0.01)),
     _timing("setup_s", "none", "s", "per-run setup", _STATS),
     _timing("train_s", "none", "s", "training of the reduced model (offline, per shape)",
             "frictionbench.solvers.contract.Solver.prepare"),
@@ -427,8 +463,14 @@ def stability_metrics() -> tuple[str, ...]:
 
 
 def computed() -> tuple[Column, ...]:
-    """The columns row building computes per finished run (`Column.compute`)."""
+    """The columns row building computes per finished run (`Column.compute`), in table order."""
     return tuple(c for c in COLUMNS.values() if c.compute is not None)
+
+
+def computed_cells(run: metrics.ComparedRun) -> dict[str, object]:
+    """The cells of every computed column (`computed`) of one finished run against its reference, in table order
+    (what row building, `analysis.rows.run_metrics`, gives a finished run's row)."""
+    return {c.name: c.compute(run) for c in computed()}
 
 
 def docs_table() -> str:

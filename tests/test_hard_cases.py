@@ -9,7 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from frictionbench.analysis.metrics import stability, stick, volume_ratio
+from frictionbench.analysis.metrics import ComparedRun, stick, volume_ratio
+from frictionbench.analysis.schema import computed
 from frictionbench.scenarios.meshes import bbox_diagonal
 from frictionbench.scenarios.suites import load_suite
 from frictionbench.solvers.build import build_model, resolved
@@ -31,9 +32,10 @@ def with_law(sc, law: str):
 
 
 def checks(sc, traj) -> dict:
+    """The stability columns of the schema (kind `stability`) of a run of `sc`, the run its own reference."""
     r = resolved(sc, bbox_diagonal(traj.X))
-    return stability(traj, plane=r.plane, material=r.material, gravity=r.gravity,
-                     contact=r.contact if r.effects.friction else None)
+    run = ComparedRun(traj, traj, r, r.contact.stiffness)
+    return {c.name: c.compute(run) for c in computed() if c.kind == "stability"}
 
 
 # ----- the suite ------------------------------------------------------------------------------------------------

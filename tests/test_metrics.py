@@ -8,12 +8,18 @@ import numpy as np
 import pytest
 
 from frictionbench.analysis import metrics
-from frictionbench.scenarios.spec import Material, Plane
+from frictionbench.analysis.schema import computed_cells
+from frictionbench.scenarios.spec import Material, Plane, Scenario
 from frictionbench.solvers.physics.inertia import lumped_mass
 from frictionbench.solvers.physics.material import shape_matrices, snh_energy_density, snh_parameters
 from frictionbench.solvers.trajectory import Trajectory
 
 GRAVITY = np.array([0.0, -9.81, 0.0])
+#: The built-in metrics of one run against its reference (the schema's computed columns), in table order.
+BUILT_IN = ("frames_compared", "pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel",
+            "proj_rmse_rel", "stick", "stick_ref", "stick_agree", "end_speed", "end_speed_ref", "finite",
+            "max_penetration_rel", "inverted_tets", "inverted_tets_frame_max", "inverted_tets_final",
+            "volume_ratio_final", "energy_ratio_max", "creep_speed_law", "creep_ratio")
 
 
 def unit_cube() -> tuple[np.ndarray, np.ndarray]:
@@ -52,6 +58,11 @@ def wobble(F: int = 6) -> np.ndarray:
     return X[None] * (1.0 + 0.05 * np.sin(k)) + 0.1 * k * np.array([1.0, 0.0, 0.0])
 
 
+def cells(ref: Trajectory, traj: Trajectory, **scene) -> dict:
+    """Every computed column of `traj` against `ref` in a scenario with the fields `scene`, through the schema."""
+    return computed_cells(metrics.ComparedRun(ref, traj, Scenario(name="metrics", **scene)))
+
+
 def test_rigid_offset_gives_offset_over_L() -> None:
     ref = make_traj(wobble())
     d = np.array([0.03, -0.04, 0.12])
@@ -85,8 +96,8 @@ def test_a_trajectory_is_stored_uncompressed_and_read_back_bitwise(tmp_path) -> 
 
 def test_identical_trajectories_give_zero_errors() -> None:
     ref = make_traj(wobble())
-    row = metrics.compare(ref, ref, plane=Plane(normal=(0.0, 1.0, 0.0), offset=-1.0), material=Material())
-    assert list(row) == list(metrics.METRIC_KEYS)
+    row = cells(ref, ref, plane=Plane(normal=(0.0, 1.0, 0.0), offset=-1.0))
+    assert list(row) == list(BUILT_IN)
     for key in ("pos_rmse_rel", "pos_max_rel", "com_err_rel", "final_err_rel", "slide_err_rel"):
         assert row[key] == 0.0
     assert row["stick_agree"] is True
@@ -110,7 +121,7 @@ def test_frames_are_aligned_on_common_times() -> None:
     np.testing.assert_array_equal(i_ref, [0, 2, 4, 6, 8])
     np.testing.assert_array_equal(i, np.arange(5))
     assert metrics.pos_rmse_rel(ref, every_other) == pytest.approx(0.2 / L)
-    assert metrics.compare(ref, every_other)["frames_compared"] == 5
+    assert cells(ref, every_other, plane=None)["frames_compared"] == 5
 
 
 def test_disjoint_times_are_an_error() -> None:
@@ -160,7 +171,7 @@ def test_stick_detects_rest_and_sliding() -> None:
     assert metrics.stick(hovering, normal)[0]
     assert not metrics.stick(hovering, normal, plane_offset=0.0)[0]
     assert not metrics.stick_agree(sliding(0.5), sliding(0.0), normal)
-    row = metrics.compare(sliding(0.5), sliding(0.0), plane=plane)
+    row = cells(sliding(0.5), sliding(0.0), plane=plane)
     assert row["stick_ref"] is False and row["stick"] is True and row["stick_agree"] is False
     assert row["end_speed_ref"] == pytest.approx(0.5)
 

@@ -21,7 +21,7 @@ import pyvista
 
 from frictionbench.analysis import metrics
 from frictionbench.analysis.derived import with_remesh_ratio
-from frictionbench.analysis.schema import names
+from frictionbench.analysis.schema import computed_cells, names
 from frictionbench.analysis.table import (
     IDENTITY_COLUMNS,
     PROVENANCE_COLUMNS,
@@ -36,7 +36,7 @@ from frictionbench.reports.interactive import plot_div, plotly_js, script_json, 
 from frictionbench.reports.plots import FAMILY_RAMPS, frontier_figure, pareto_front
 from frictionbench.reports.viewer import ViewerBudget, decimate_surface, viewer_figure
 from frictionbench.scenarios.meshes import bbox_diagonal
-from frictionbench.scenarios.spec import Material, Plane
+from frictionbench.scenarios.spec import Plane, Scenario
 from frictionbench.solvers.trajectory import Trajectory
 
 from scenes import block_drop, mu_axis, suite_tables, write_toml
@@ -75,7 +75,7 @@ def result_rows(runs) -> list[dict[str, object]]:
         row = {"suite": "quick", "scenario": "slide", "split": "test", "mesh": "block/coarse",
                "train_mesh": "block/coarse", "solver": solver, "variant": variant, "param_r": 16,
                "status": "ok", "failure": None, "step_ms_median": step_ms, "speedup": 40.0 / step_ms}
-        row.update(metrics.compare(ref, traj, plane=PLANE, material=Material()))
+        row.update(computed_cells(metrics.ComparedRun(ref, traj, Scenario(name="slide", plane=PLANE))))
         rows.append(row)
     rows.append({**rows[1], "mesh": "block/coarse_alt", "pos_rmse_rel": 2.0 * rows[1]["pos_rmse_rel"]})
     rows.append({**rows[1], "variant": "r64", "status": "failed", "failure": "Newton did not converge at t=0.3",

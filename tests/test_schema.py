@@ -11,9 +11,10 @@ import pandas as pd
 import pytest
 
 from frictionbench.analysis import schema
-from frictionbench.analysis.rows import collect_rows
+from frictionbench.analysis.metrics import ComparedRun
+from frictionbench.analysis.rows import collect_rows, run_metrics
 from frictionbench.analysis.schema import (COLUMNS, Column, docs_table, docs_with_table, flag, is_missing, number,
-                                           stability_metrics, truthy)
+                                           stability_metrics, together, truthy)
 from frictionbench.analysis.table import write_results_csv
 from frictionbench.bench.compare import compare_results, default_rules
 from frictionbench.bench.runner import Task, Variant, run_records
@@ -26,9 +27,9 @@ from frictionbench.solvers.trajectory import Trajectory
 DESIGN = Path(__file__).resolve().parents[1] / "docs" / "design.md"
 
 
-def toy_drop(ref: Trajectory, traj: Trajectory, scenario: Scenario) -> float:
+def toy_drop(run: ComparedRun) -> float:
     """How far the run's centre ends below the reference's [m]."""
-    return float(ref.x[-1, :, 1].mean() - traj.x[-1, :, 1].mean())
+    return float(run.ref.x[-1, :, 1].mean() - run.traj.x[-1, :, 1].mean())
 
 
 @pytest.fixture
@@ -85,6 +86,27 @@ def test_a_metric_declared_in_the_schema_alone_reaches_results_compare_report_an
     assert "<th>toy_drop</th>" in results_section
     assert "| `toy_drop` | accuracy | lower | 0.001 | m |" in docs_table()
     assert f"`{__name__}.toy_drop`" in docs_table()
+
+
+def test_columns_one_computation_gives_are_declared_together_and_computed_once_per_run(monkeypatch) -> None:
+    """Two toy columns from one function, declared in the schema alone, land in a finished run's row (after the
+    built-in metrics) from a single call of it per run."""
+    calls = []
+
+    def drops(run: ComparedRun) -> dict[str, float]:
+        """How far the run's centre is below the reference's at the middle and last frames [m]."""
+        calls.append(run)
+        drop = run.ref.x[:, :, 1].mean(axis=1) - run.traj.x[:, :, 1].mean(axis=1)
+        return {"toy_mid_drop": float(drop[drop.size // 2]), "toy_end_drop": float(drop[-1])}
+
+    for column in together(drops, Column("toy_mid_drop", "accuracy", "lower", "m", "drop at the middle frame"),
+                           Column("toy_end_drop", "accuracy", "lower", "m", "drop at the last frame")):
+        monkeypatch.setitem(COLUMNS, column.name, column)
+    sc = Scenario(name="toy", effects=Effects(friction=False))
+    row = run_metrics(falling_tet(0.05), falling_tet(0.07), sc, {"contact_stiffness": 1e5})
+    assert list(row)[-2:] == ["toy_mid_drop", "toy_end_drop"] and row["status"] == "ok" and "pos_rmse_rel" in row
+    assert row["toy_mid_drop"] == pytest.approx(0.01) and row["toy_end_drop"] == pytest.approx(0.02)
+    assert len(calls) == 1
 
 
 def test_the_docs_table_of_metrics_is_the_generated_one() -> None:
