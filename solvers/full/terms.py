@@ -127,7 +127,8 @@ class DensityLauncher(Launcher):
         wp.launch(self.gradient, m.tets.shape[0], device=s.device, inputs=ins(self.gradient))
         if not hessian:
             return
-        s.elem_blocks.zero_()
+        if not self.term.kernels.hessian_assigns:
+            s.elem_blocks.zero_()
         labels = [arg.label for arg in self.hessian.adj.args]
         s.elements.launch(self.hessian, ins(self.hessian),
                           {i: self.per_tet[label] for i, label in enumerate(labels) if label in self.per_tet})

@@ -143,7 +143,8 @@ class VertexTerm(BodyTerm):
 class TetKernels:
     """The names of a `DensityTerm`'s warp kernels (module docstring: a bare name in `solvers.kernels`, else
     "module:name"), one thread per tet: `energy` adds sum_e V_e psi_e into `energy`, `gradient` the forces into
-    `grad`, `hessian` writes or adds the 16 blocks (3x3) of tet e from `blocks[16 e]` (zeroed before).
+    `grad`, `hessian` adds into the 16 blocks (3x3) of tet e from `blocks[16 e]` (zeroed before), or assigns them
+    (`hessian_assigns`).
     `at_bar` (None: none), a kernel (x, tets, Dm_inv, OUT) run once a step at x = x_bar that writes a per-tet 3x3
     array passed to the other kernels under OUT's name (viscosity: the Green strain E_bar). `cubature` (None: none;
     a bare name in `solvers.reduced.kernels`), the reduced backend's kernel at the cubature tets' deformation
@@ -156,6 +157,9 @@ class TetKernels:
     at_bar: str | None = None
     cubature: str | None = None
     rows: int = 9
+    #: The Hessian kernel assigns every block of its tets (rather than adding into them): the blocks need no zeroing
+    #: before it (viscosity's; elasticity's adds its modes one by one).
+    hessian_assigns: bool = False
 
 
 class DensityTerm(BodyTerm):

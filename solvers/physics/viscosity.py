@@ -133,7 +133,8 @@ class Viscosity(DensityTerm):
 
     name = "viscosity"
     kernels = TetKernels("viscous_energy_kernel", "viscous_gradient_kernel", "viscous_hessian_kernel",
-                         at_bar="green_strain_kernel", cubature="viscous_kernel", rows=15)
+                         at_bar="green_strain_kernel", cubature="viscous_kernel", rows=15,
+                         hessian_assigns=True)
     rate = True
 
     def kernel_parameters(self, model: Model, h: float) -> dict[str, float]:

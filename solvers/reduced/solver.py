@@ -432,7 +432,6 @@ class ReducedSolver:
         self.armijo, self.max_halvings = armijo, max_halvings
         self.hessian_refresh = hessian_refresh
         self._steps = 0  # steps begun (`step`), which key the kept body Hessian
-        self._kept: tuple[int, np.ndarray | None] | None = None  # (step, its body Hessian) under refresh "step"
         if name is not None:
             self.name = name
         self.integrator = model.integrator
@@ -464,7 +463,7 @@ class ReducedSolver:
                            if self.contact_candidates and self.lag_reach < np.inf else None)
         self._point_set: tuple[ReducedStep | None, _PointSet | None] = (None, None)  # the last evaluation's
         self._memo: tuple | None = None  # (st, q's bytes, (E, g, H)) of the last `evaluate`
-        self._kept = None
+        self._kept: tuple[int, np.ndarray | None] | None = None  # (step, its body Hessian) under refresh "step"
 
     # ----- state mapping ---------------------------------------------------------------------------------
     def project(self, state: State) -> State:
