@@ -1,4 +1,4 @@
-"""Metrics of one trajectory against a reference trajectory on the same mesh (docs/design.md, "Metrics").
+"""Metrics of one trajectory against a reference trajectory on the same mesh (docs/metrics.md).
 
 Every function is pure: trajectories in, numbers out. Units are SI; every `*_rel` metric is divided by the
 length scale L = |max(X) - min(X)|, the diagonal of the rest mesh's bounding box, so it is dimensionless.
@@ -264,9 +264,9 @@ def finite(traj: Trajectory) -> bool:
 def max_penetration_rel(traj: Trajectory, plane_normal: ArrayLike3, plane_offset: float) -> float:
     """max(0, max over frames k and surface vertices i of -(n . x_ki - d)) / L for the plane n . x = d.
 
-    Contact acts on the boundary surface (docs/design.md, "Contact"), so penetration is the surface's. An interior
-    vertex can only pass the plane while the surface stays above it if the elements between them invert,
-    which `inverted_tets` reports.
+    Contact acts on the boundary surface (docs/physics.md, "Contact with the plane"), so penetration is the
+    surface's. An interior vertex can only pass the plane while the surface stays above it if the elements between
+    them invert, which `inverted_tets` reports.
     """
     n, d = unit_plane(plane_normal, plane_offset)
     points = np.unique(traj.surface) if traj.surface.size else slice(None)  # no surface given: every vertex

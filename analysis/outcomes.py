@@ -1,4 +1,4 @@
-"""Outcome metrics: what a run ends with, judged against the ground truth's (docs/design.md, "Outcome metrics").
+"""Outcome metrics: what a run ends with, judged against the ground truth's (docs/metrics.md, "Outcome metrics").
 
 An outcome is a quantity of one trajectory: how far the body slides along the plane, where its centre of mass ends
 and how it is turned, when it comes to rest, how much mechanical energy the impact dissipates, its peak kinetic
@@ -36,7 +36,7 @@ from frictionbench.solvers.physics.contact import barrier, lagged_pressure, pena
 from frictionbench.solvers.trajectory import Trajectory
 
 #: The window [s] after the last frame before the first contact over which `impact_loss` measures the mechanical
-#: energy lost (docs/design.md, "Outcome metrics", says why 0.2 s).
+#: energy lost (docs/metrics.md, "Outcome metrics", says why 0.2 s).
 IMPACT_WINDOW_S = 0.2
 
 

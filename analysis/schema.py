@@ -4,7 +4,7 @@ A `Column` says what a column is (kind), which way it is better and by how much 
 compare` calls it a regression, its unit and meaning, and the function that computes it. Everything else is derived
 from `COLUMNS`: the table's column order (`analysis.table`), the comparison rules (`bench.compare.default_rules`),
 the stability metrics of the headline, the report and the comparison, the report's column groups, the columns
-`bench.unchanged` leaves out, and the table of metrics in docs/design.md (`docs_table`, checked by a test).
+`bench.unchanged` leaves out, and the table of metrics in docs/metrics.md (`docs_table`, checked by a test).
 
 A metric needs only its declaration here: a `Column` with `compute` (a function of the finished run,
 `analysis.metrics.ComparedRun`: its trajectory, its reference's, its scenario) is evaluated on every finished run by
@@ -124,7 +124,7 @@ def _timing(name: str, better: str, unit: str, meaning: str, source: str, **kw) 
 
 @dataclass(frozen=True)
 class Outcome:
-    """One outcome metric (docs/design.md, "Outcome metrics"): a quantity of a run judged against the truth's, with
+    """One outcome metric (docs/metrics.md, "Outcome metrics"): a quantity of a run judged against the truth's, with
     its own convergence over the truth's ladder. Declared once in OUTCOMES; its columns follow (`columns`) and
     `analysis.outcomes` computes them.
 
@@ -195,7 +195,7 @@ class Outcome:
 
 
 _OUT = "frictionbench.analysis.outcomes"
-#: The outcome metrics, each declared once (docs/design.md, "Outcome metrics").
+#: The outcome metrics, each declared once (docs/metrics.md, "Outcome metrics").
 OUTCOMES: dict[str, Outcome] = {o.name: o for o in (
     Outcome("slide", "m", "distance the centre of mass travels along the plane, start to end",
             f"{_OUT}.slide_distance", f"{_OUT}.length_difference", "L", "|slide - the truth's slide| / L", 0.005),
@@ -474,7 +474,7 @@ def computed_cells(run: metrics.ComparedRun) -> dict[str, object]:
 
 
 def docs_table() -> str:
-    """The table of metrics in docs/design.md (Markdown): every column but identity and provenance, by kind."""
+    """The table of metrics in docs/metrics.md (Markdown): every column but identity and provenance, by kind."""
     lines = ["| column | kind | better | tolerance | unit | meaning | computed in |",
              "|---|---|---|---|---|---|---|"]
     for kind in KINDS[1:-1]:
@@ -483,13 +483,13 @@ def docs_table() -> str:
     return "\n".join(lines) + "\n"
 
 
-#: The lines around the table of metrics in docs/design.md.
+#: The lines around the table of metrics in docs/metrics.md.
 DOCS_TABLE_BEGIN = "<!-- metrics table: analysis.schema.docs_table -->\n"
 DOCS_TABLE_END = "<!-- end of metrics table -->"
 
 
 def docs_with_table(text: str) -> str:
-    """A design document's text with its table of metrics (between DOCS_TABLE_BEGIN and DOCS_TABLE_END) replaced
+    """docs/metrics.md's text with its table of metrics (between DOCS_TABLE_BEGIN and DOCS_TABLE_END) replaced
     by `docs_table()`."""
     begin = text.index(DOCS_TABLE_BEGIN) + len(DOCS_TABLE_BEGIN)
     return text[:begin] + docs_table() + text[text.index(DOCS_TABLE_END, begin):]
@@ -531,8 +531,8 @@ def truthy(value: object) -> bool:
     return flag(value) is True
 
 
-if __name__ == "__main__":  # python -m frictionbench.analysis.schema: rewrite the table of metrics in docs/design.md
+if __name__ == "__main__":  # python -m frictionbench.analysis.schema: rewrite the table of metrics in docs/metrics.md
     from pathlib import Path
 
-    design = Path(__file__).resolve().parents[1] / "docs" / "design.md"
-    design.write_text(docs_with_table(design.read_text(encoding="utf-8")), encoding="utf-8")
+    page = Path(__file__).resolve().parents[1] / "docs" / "metrics.md"
+    page.write_text(docs_with_table(page.read_text(encoding="utf-8")), encoding="utf-8")

@@ -1,6 +1,6 @@
 """The results table: one row per scenario x solver variant, written as `results.csv`.
 
-Column order (docs/design.md, "Metrics"), from the schema (`analysis.schema.COLUMNS`, read when the table is written):
+Column order (docs/metrics.md), from the schema (`analysis.schema.COLUMNS`, read when the table is written):
 1. identity: the placed identity columns present in the rows, then solver parameters (keys starting with `param_`,
    in the order first seen);
 2. metrics: the other placed columns present in the rows, then any other key (the schema's unplaced columns among

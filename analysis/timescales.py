@@ -1,4 +1,4 @@
-"""The time scales of a suite's scenes and how well each run's step resolves them (docs/design.md, "Time scales").
+"""The time scales of a suite's scenes and how well each run's step resolves them (docs/metrics.md, "Time scales").
 
 The physics is `solvers.physics.timescales`; here it is computed once per distinct scene: the elastic spectrum
 (omega_max, omega_1) once per mesh and material, the share of unresolved modes once per mesh, material and

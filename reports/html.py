@@ -227,7 +227,7 @@ def _curve_floors(frame: pd.DataFrame) -> str:
                   f"all-tets twin curve is at most {CUBATURE_MARGIN:g}x as far from the truth at the same level, "
                   f"the subspace where err_projection is at least {SUBSPACE_SHARE:.0%} of err_truth, else the "
                   "reduction (the reduced dynamics); too few levels: fewer than two successive levels finished "
-                  "(docs/design.md, \"Reduced curves\").")
+                  "(docs/metrics.md, \"Reduced curves\").")
             + _table(table))
 
 
@@ -290,7 +290,7 @@ def _outcomes(frame: pd.DataFrame) -> str:
                           "tolerance": o.tol, "of": o.err_unit, "certified": r[o.certified_column]})
     if not table:
         return _note("No outcome convergence in this result set (no ground truth, or no plane).")
-    return (_note("Each outcome of each scenario's truth (docs/design.md, \"Outcome metrics\"): its value, the "
+    return (_note("Each outcome of each scenario's truth (docs/metrics.md, \"Outcome metrics\"): its value, the "
                   "difference between the truth ladder's two finest levels, the estimate of the truth's own error "
                   "(Richardson, as for positions; a verdict's is its last difference) and whether the difference "
                   "meets the outcome's tolerance. Each run's error against these values is a column of the results "

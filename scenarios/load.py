@@ -49,7 +49,7 @@ optional and defaults to the dataclass default unless said otherwise below):
     [time]        dt > 0, duration >= dt, frame_every >= 1 (an integer),
                   integrator = a name of `scenarios.spec.integrator_names()` (the integrators of
                   `solvers.integrators`); default TimeSpec.integrator, backward Euler;
-                  optional adaptive steps (docs/design.md, "Adaptive steps"): tol > 0 (finite; the local error
+                  optional adaptive steps (docs/physics.md, "Adaptive steps"): tol > 0 (finite; the local error
                   allowed per step, a fraction of L; absent: fixed steps of dt), then dt is the first and largest
                   step, and dt_min (only with tol) in (0, dt] the smallest [s] (default dt / 1024, or
                   duration / 100,000 where larger: `TimeSpec.min_step`)

@@ -62,7 +62,7 @@ class MeshSpec:
 @dataclass(frozen=True)
 class Material:
     """Stable Neo-Hookean material: density [kg/m^3], Young's modulus [Pa], Poisson ratio [-] in (-1, 0.5), and
-    its Kelvin-Voigt damping (docs/design.md, "Material damping"), given at most one way: `viscosity` eta [Pa s],
+    its Kelvin-Voigt damping (docs/physics.md, "Material damping"), given at most one way: `viscosity` eta [Pa s],
     or `damping_ratio` zeta [-], the damping ratio of the body's first non-rigid vibration mode on its mesh,
     resolved to a viscosity when the model is built (`solvers.physics.viscosity.viscosity_for_damping_ratio`).
     Both None: undamped (no viscosity term)."""
@@ -89,7 +89,7 @@ CONTACT_LAGS = ("start", "corrected", "fixed-point")
 
 @dataclass(frozen=True)
 class Contact:
-    """Contact law and parameters, all per unit contact area (docs/design.md, "Contact with the plane").
+    """Contact law and parameters, all per unit contact area (docs/physics.md, "Contact with the plane").
 
     law: `penalty` (the paper's soft contact) or `barrier` (IPC log barrier).
     stiffness: k_e [Pa/m], normal force per area per metre of penetration (penalty law); None (TOML "auto", the
@@ -146,7 +146,7 @@ class TimeSpec:
     """Time stepping: step dt [s], duration [s], store a frame every `frame_every` steps, and the `integrator` of
     the implicit solvers (a name of `integrator_names()`).
 
-    Adaptive steps (docs/design.md, "Adaptive steps"): `tol` [fraction of L] is the local error allowed per step
+    Adaptive steps (docs/physics.md, "Adaptive steps"): `tol` [fraction of L] is the local error allowed per step
     (RMS over the vertices of the estimated position error / L); None (the default) steps by dt throughout. With a
     tol, dt is the first and the largest step, `dt_min` [s] the smallest (None: `min_step`'s default), and the
     frames stay at the fixed-step times, every frame_every x dt."""

@@ -33,12 +33,12 @@ Format (TOML; the shipped suites live in `scenarios/suites/<name>.toml`):
     ladders = ["backward-euler"]    # optional: integrators whose ladders also run (to the truth's level) as
                                     # cost-accuracy curves of the frontier
     kind = "step"                   # "step" (default): level k runs at dt / 2^k; "tolerance": level k runs adaptive
-    start_tol = 1e-4                # steps (time.tol, docs/design.md "Adaptive steps") with time.tol =
+    start_tol = 1e-4                # steps (time.tol, docs/physics.md "Adaptive steps") with time.tol =
                                     # start_tol / 8^k (required with and only with kind = "tolerance"; a fraction of
                                     # L in [1e-12, 0.5]): TOLERANCE_FACTOR
     contact_lag = "start"           # the ladder runs' contact.lag: "start" (default, the scenario's),
                                     # "corrected" (one re-lagged solve) or "fixed-point" (lagged iterations;
-                                    # docs/design.md "Contact with the plane")
+                                    # docs/physics.md "Contact with the plane")
     newton_tol = 1e-4               # optional: the ladder runs' Newton tolerance [fraction of L per second, in
                                     # [1e-12, 0.01]; default the solver's, 1e-5]: a run of T seconds drifts by at
                                     # most newton_tol T L, so keep newton_tol T well below tol

@@ -1,4 +1,4 @@
-"""The time integrators of the implicit solvers, as incremental potentials (docs/design.md, "Time integration").
+"""The time integrators of the implicit solvers, as incremental potentials (docs/physics.md, "Time integration").
 
 An integrator is an object: an `Integrator` subclass with its `name` (what a scenario's `time.integrator` says), its
 formal `order`, the `history` it needs (how many states before the step's start) and its `coefficients` for a step
@@ -29,7 +29,7 @@ adaptive step size needs (`solvers.simulate`, a scenario with `time.tol`).
 
 Each integrator also estimates the local error of a step it took (`Integrator.local_error`, Milne's device): the
 difference between the implicit step's end positions and an explicit predictor through the same history, scaled by
-the two formulas' error constants at the step ratio w (docs/design.md, "Adaptive steps"):
+the two formulas' error constants at the step ratio w (docs/physics.md, "Adaptive steps"):
 
 - one-step formula (backward Euler, and BDF2's first step): predictor y^n + h v^n; the error constants of h^2 y^(2)
   are +1/2 (implicit) and -1/2 (predictor), so the estimate is (y^{n+1} - predictor) / 2, of order p = 1;

@@ -3,7 +3,7 @@
 Newton (the open, warp-based physics engine, `pip install newton`) steps a tet mesh by VBD: per (sub)step a fixed
 number of block Gauss-Seidel sweeps over the vertices, each vertex moved by one 3x3 Newton step of the implicit-Euler
 incremental potential with its neighbours held, vertices of one colour in parallel; no global solve and no
-convergence test. This module builds, from a frictionbench `Model`, the same physical problem in Newton (docs/design.md
+convergence test. This module builds, from a frictionbench `Model`, the same physical problem in Newton (docs/solvers.md
 "Newton's VBD as a peer") and steps it with `newton.solvers.SolverVBD`:
 
 - the rest mesh, density (Newton lumps tet masses to vertices as we do), and Young's modulus and Poisson ratio as

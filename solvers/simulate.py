@@ -9,7 +9,7 @@ run: the loop raises `Diverged` carrying what was computed so far. Each state a 
 step started from (`State.previous`), so BDF2's history follows the steps actually taken: a retried step restarts it
 with a backward-Euler half step (`solvers.integrators`).
 
-A scenario with `time.tol` steps adaptively instead (`adaptive_step`; docs/design.md, "Adaptive steps"): each step's
+A scenario with `time.tol` steps adaptively instead (`adaptive_step`; docs/physics.md, "Adaptive steps"): each step's
 local error is estimated by the model's integrator (`Integrator.local_error`, on the decoded positions x, so the
 full-space and the reduced solvers are controlled alike), measured by `error_norm` and held to tol by rejecting and
 retrying a step from the same start, the step sizes chosen by a standard controller (`Controller`) within

@@ -1,4 +1,4 @@
-"""Adaptive, error-controlled steps (`time.tol`, docs/design.md "Adaptive steps"): the integrators' local error
+"""Adaptive, error-controlled steps (`time.tol`, docs/physics.md "Adaptive steps"): the integrators' local error
 estimates against the true local error, the controller and the frame landing, a block drop under the full-space and
 the reduced solvers (steps shrink at the impact and grow in free flight, rejections there, frames at the fixed
 times, error falling with tol against a fine fixed-step run), fixed-step runs unchanged, validation and the resource
@@ -126,7 +126,7 @@ def _drop(block, solver: str = "full", mu: float = 0.0, **time):
 def drops(block):
     """The frictionless drop at tol 1e-2, 1e-3, 1e-4, and fixed at dt / 64 (the fine run the errors are taken
     against): frictionless, so that no term lags its pressure by a step and the integrator's order holds in contact
-    (with friction the lag adds a first-order error the estimate does not see: docs/design.md)."""
+    (with friction the lag adds a first-order error the estimate does not see: docs/physics.md)."""
     runs = {tol: _drop(block, tol=tol) for tol in (1e-2, 1e-3, 1e-4)}
     runs["fine"] = _drop(block, dt=DT / 64, frame_every=64)
     return runs

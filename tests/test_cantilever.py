@@ -47,6 +47,6 @@ def test_cantilever_tip_matches_scikit_fem_and_beam_theory():
     ref = skfem_self_weight(X, model.tets, clamped)[tip, 1].mean()
     assert ours == pytest.approx(ref, rel=0.05)
     # Euler-Bernoulli tip deflection 3 rho g L^4 / (2 E h^2); linear tets are stiff in bending on coarse meshes,
-    # so the FEM value lies below it and approaches it under refinement (see docs/verification.md).
+    # so the FEM value lies below it and approaches it under refinement (see docs/results.md).
     beam = -3 * RHO * G * length**4 / (2 * E * thickness**2)
     assert 0.3 * abs(beam) < abs(ours) < 1.02 * abs(beam)

@@ -88,7 +88,7 @@ def test_the_basis_holds_the_affine_fields_the_modes_and_the_derivatives_mass_or
 def test_the_modal_solver_runs_in_a_matrix_on_any_mesh_and_its_modes_lower_the_affine_error(tmp_path):
     """A soft block dropped on a plane, `modal` beside `affine` (the same affine fields with no modes), on the
     member's mesh and on the other mesh of the shape, no training: the larger subspace is closer to the full-space
-    reference (by little: a free body's low modes hold little of a contact's squash, docs/variants.md)."""
+    reference (by little: a free body's low modes hold little of a contact's squash, docs/solvers.md)."""
     soft = {"youngs_modulus": 3e3, "poisson_ratio": 0.3, "density": 1000.0}
     suite = write_toml(tmp_path / "soft.toml", suite_tables("soft", block_drop(duration=0.3, material=soft),
                                                             mu_axis(0.5)))

@@ -24,7 +24,7 @@ from frictionbench.scenarios.spec import Effects, Scenario
 from frictionbench.scenarios.suites import Suite, SuiteMember
 from frictionbench.solvers.trajectory import Trajectory
 
-DESIGN = Path(__file__).resolve().parents[1] / "docs" / "design.md"
+METRICS_DOC = Path(__file__).resolve().parents[1] / "docs" / "metrics.md"
 
 
 def toy_drop(run: ComparedRun) -> float:
@@ -110,7 +110,7 @@ def test_columns_one_computation_gives_are_declared_together_and_computed_once_p
 
 
 def test_the_docs_table_of_metrics_is_the_generated_one() -> None:
-    text = DESIGN.read_text(encoding="utf-8")
+    text = METRICS_DOC.read_text(encoding="utf-8")
     assert docs_with_table(text) == text, "run `python -m frictionbench.analysis.schema` to regenerate it"
     stale = text.replace("| `pos_rmse_rel` |", "| `pos_rmse` |")
     assert docs_with_table(stale) == text

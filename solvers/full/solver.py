@@ -1,7 +1,7 @@
 """Full-space implicit time stepping as energy minimisation, solved by Newton's method with warp kernels.
 
 Each step minimises E(x) = 1/(2h^2)|x - x_hat|_M^2 + sum_e V_e Psi(F_e) + E_gravity + E_contact + D_friction over
-the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/design.md, "Physics"); with a multistep
+the vertex positions x (n, 3), x_hat = x^n + h v^n for backward Euler (docs/physics.md); with a multistep
 integrator (the model's, e.g. BDF2) h is its effective step h_eff (2/3 dt for BDF2) and x_hat = x_bar + h_eff v_bar
 (`solvers.integrators`). Only the terms the scene calls for are built (`solvers.physics.terms.terms_of`), each by
 the launcher its declaration picks (`solvers.full.terms`); an absent term launches no kernel. Newton directions come

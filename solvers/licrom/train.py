@@ -1,6 +1,6 @@
 """Offline LiCROM training: data from full-space trajectories, the training loop, checkpoints, inference helpers.
 
-The model (docs/design.md, "Solvers"): a PointNet encoder maps one frame's points (X, u) to a
+The model (docs/solvers.md, "LiCROM"): a PointNet encoder maps one frame's points (X, u) to a
 latent code q, a neural field maps a rest position X to the basis W(X) (3 x r), and training minimises the mean
 squared reconstruction error of W(X) q against u over points subsampled per frame.
 

@@ -1,4 +1,4 @@
-"""Plane contact per unit surface area (docs/design.md, "Contact with the plane"), evaluated at surface points
+"""Plane contact per unit surface area (docs/physics.md, "Contact with the plane"), evaluated at surface points
 with area weights.
 
 Plane: phi(x) = n . x - d (n unit). Penalty law (the paper's, from warp's soft contact): penetration

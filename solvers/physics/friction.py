@@ -1,4 +1,4 @@
-"""Coulomb friction against the plane as a lagged dissipative potential (IPC's treatment, docs/design.md "Friction").
+"""Coulomb friction against the plane as a lagged dissipative potential (IPC's treatment, docs/physics.md "Friction").
 
 Per point with area A and lagged normal pressure f_n (from the start of the step):
 D = A h mu f_n f0(|v_t|), v_t = T (x - x^n) / h, T = I - n n^T, with f0' = f1, f1(s) = min(s / eps_v, 1),

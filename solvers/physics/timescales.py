@@ -1,4 +1,4 @@
-"""A scene's fast time scales and how well a time step resolves them (docs/design.md, "Time scales").
+"""A scene's fast time scales and how well a time step resolves them (docs/metrics.md, "Time scales").
 
 Elastic: K phi = omega^2 M phi at rest (K the unprojected elastic Hessian `rest_stiffness`, M the lumped mass):
 its top omega_max (`spectrum_top`, Lanczos), its first non-rigid mode omega_1 (`viscosity.first_mode`), and the

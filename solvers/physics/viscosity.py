@@ -1,4 +1,4 @@
-"""Kelvin-Voigt material damping as a dissipative potential on the Green strain rate (docs/design.md, "Material
+"""Kelvin-Voigt material damping as a dissipative potential on the Green strain rate (docs/physics.md, "Material
 damping").
 
 With the Green strain E(F) = (F^T F - I) / 2 and its rate E_dot = (E(x) - E(x_bar)) / h_eff over the step

@@ -1,4 +1,4 @@
-"""Linear-subspace baselines for the reduced solver: bases W (n, 3, r) with u(X_i) = W[i] q (docs/design.md, "Solvers").
+"""Linear-subspace baselines for the reduced solver: bases W (n, 3, r) with u(X_i) = W[i] q (docs/solvers.md).
 
 - `affine_fields` / `affine_basis`: the 12 exact affine fields (every rigid motion and every homogeneous strain),
   mesh-free; `affine_fields` is also the affine part of LiCROM's neural field (torch);

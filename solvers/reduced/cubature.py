@@ -1,7 +1,7 @@
 """Cubature of the reduced elastic energy: which tets are evaluated online, and with which weights.
 
 The reduced elastic energy sum_e V_e Psi(F_e(q)) over all m tets is approximated by sum_c w_c V_c Psi(F_c(q))
-over a few cubature tets c (docs/design.md, "Solvers"). A cubature is a pair `(ids, weights)`: tet indices (c,) into
+over a few cubature tets c (docs/solvers.md, "Cubature"). A cubature is a pair `(ids, weights)`: tet indices (c,) into
 `model.tets` and dimensionless weights (c,) multiplying V_c Psi(F_c); every tet with weight 1 is exact.
 
 - `all_tets`: every tet, weight 1 (exact; the reference for the other two).

@@ -1,6 +1,6 @@
 """Deformation modes in the body's frame (a floating frame of reference, as flexible multibody codes use): the
 configuration x = c + R (X - C + U q_d) of a body whose deformation U q_d is expressed in its own frame and carried
-by its rotation R (docs/design.md, "Modes in the body's frame").
+by its rotation R (docs/solvers.md, "Modes in the body's frame").
 
 With the 12 affine fields A among the columns, every such configuration at a fixed R lies in the linear subspace of
 W(R) = [A, R U]: the rigid part c - R C + (R - I) X is affine in X. So `FrameSolver` steps the linear machinery of

@@ -1,5 +1,5 @@
-"""LiCROM's online latent dynamics: implicit time stepping in the linear subspace x = X + W q (docs/design.md,
-"Solvers").
+"""LiCROM's online latent dynamics: implicit time stepping in the linear subspace x = X + W q (docs/solvers.md,
+"LiCROM").
 
 Each step minimises the incremental potential of the full-space solver restricted to the subspace,
 
@@ -19,7 +19,7 @@ Schemes:
   a step cap that keeps every contact point above the plane; a line search without decrease ends the attempt).
   Converged when |W dq|_inf / h < tol * L over all mesh vertices (the full solver's measure; decoding dq costs
   one (3n x r) product).
-- "projected_gradient": the LiCROM contact paper's scheme (docs/design.md). The sample points are the vertices of the
+- "projected_gradient": the LiCROM contact paper's scheme (docs/solvers.md). The sample points are the vertices of the
   cubature tets, each carrying the cubature estimate of its lumped mass w_i = rho/4 sum_{c owns i} w_c V_c,
   plus the contact points (force only, no mass). Every iteration decodes the points, evaluates the full-space
   gradient g_i of the incremental potential there (inertia w_i/h^2 (x_i - x_hat_i), gravity -w_i g, the
