@@ -1,6 +1,7 @@
 """The recorded relaunch of a CPU kernel (`solvers.warp_runtime.RecordedLaunch`): its argument structure built once
 and the compiled kernel called on it gives what warp's own launch gives, bit for bit, and follows every change of a
-scalar argument and of the launch size; and warp's initialisation without its no-CUDA-driver notice."""
+scalar argument and of the launch size; a backend's launches through `Relaunches` (one recording per kernel, size
+and arrays) the same; and warp's initialisation without its no-CUDA-driver notice."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import pytest
 import warp as wp
 
 from frictionbench.solvers import warp_runtime
-from frictionbench.solvers.warp_runtime import RecordedLaunch, init_warp
+from frictionbench.solvers.warp_runtime import RecordedLaunch, Relaunches, init_warp
 
 init_warp()
 
@@ -51,6 +52,25 @@ def test_a_relaunch_matches_warps_launch_bit_for_bit_through_every_change(monkey
         assert np.array_equal(view, expected), (a, b, n)
         assert np.count_nonzero(view[n:]) == 0  # the size is followed: nothing written past n
     assert (launch._packed is not None) == packed
+
+
+def test_relaunches_keep_one_recording_per_kernel_size_and_arrays_and_follow_the_scalars() -> None:
+    """Launches through `Relaunches` on two input arrays, at changing scalars and two sizes, give warp's own launch
+    bit for bit into the same output; each (size, input array) pair is one recording, the scalars set on it."""
+    rng = np.random.default_rng(5)
+    xs = [rng.uniform(-2.0, 2.0, 29) for _ in range(2)]
+    arrays = [wp.array(x, dtype=wp.float64, device="cpu") for x in xs]
+    out = wp.zeros(29, dtype=wp.float64, device="cpu")
+    launches = Relaunches("cpu")
+    view = out.numpy()
+    calls = [(0, 1.0, 0.0, 29), (1, 1.0, 0.0, 29), (0, 0.3, 2.0, 29), (1, -0.4, 0.5, 29), (0, 0.3, 2.0, 13),
+             (0, 1.1, -2.0, 13), (1, 0.9, 0.1, 29), (0, 0.0, 0.0, 0)]
+    for k, a, b, n in calls:
+        view[:] = 0.0
+        launches.launch(_affine, n, [arrays[k], a, b, out])
+        expected = _warp_launch(xs[k], a, b, n) if n else np.zeros(29)
+        assert np.array_equal(view, expected), (k, a, b, n)
+    assert len(launches._recorded) == 3  # (29, x0), (29, x1), (13, x0); a size-0 launch records nothing
 
 
 def test_warps_no_driver_notice_is_dropped_and_other_native_output_kept(capfd) -> None:

@@ -15,6 +15,8 @@ from functools import cache
 import warp as wp
 from threadpoolctl import threadpool_info
 
+from frictionbench.solvers.warp_runtime import Relaunches
+
 #: Fewest elements per range worth a thread of its own.
 MIN_ELEMENTS_PER_THREAD = 1000
 
@@ -34,13 +36,17 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 
 
 class ElementRanges:
-    """m elements on `device` cut into up to `threads` contiguous ranges (one launch per range, in parallel)."""
+    """m elements on `device` cut into up to `threads` contiguous ranges (one launch per range, in parallel), each
+    range's launch recorded at its first and relaunched after (`solvers.warp_runtime.Relaunches`)."""
 
     def __init__(self, m: int, device: wp.Device, threads: int) -> None:
         k = 1 if device.is_cuda else max(1, min(threads, m // MIN_ELEMENTS_PER_THREAD))
         bounds = [m * i // k for i in range(k + 1)]
         self.ranges = list(zip(bounds[:-1], bounds[1:]))
         self.m, self.device = m, device
+        self.launches = Relaunches(device)
+        # (kernel, the whole inputs' identities) -> each range's inputs, cut once (views: the same memory)
+        self._cuts: dict[tuple, tuple[list, list[list]]] = {}
         self._loaded: set[object] = set()
 
     @property
@@ -57,20 +63,29 @@ class ElementRanges:
         turn: it may compile and load the kernel's module, which is done once, from one thread.
         """
         if len(self.ranges) == 1:
-            wp.launch(kernel, self.m, device=self.device, inputs=inputs)
+            self.launches.launch(kernel, self.m, inputs)
             return
+        key = (kernel, *(id(x) for i, x in enumerate(inputs) if i in per_element))
+        if key not in self._cuts:  # the whole arrays kept referenced, so that their identities stay theirs
+            self._cuts[key] = (list(inputs), [
+                [x[per_element[i] * a: per_element[i] * b] if i in per_element else x for i, x in enumerate(inputs)]
+                for a, b in self.ranges])
+        cuts = self._cuts[key][1]
+        whole = [(i, x) for i, x in enumerate(inputs) if i not in per_element]
 
-        def run(r: tuple[int, int]) -> None:
-            a, b = r
-            cut = [x[per_element[i] * a: per_element[i] * b] if i in per_element else x for i, x in enumerate(inputs)]
-            wp.launch(kernel, b - a, device=self.device, inputs=cut)
+        def run(j: int) -> None:
+            cut = cuts[j]
+            for i, x in whole:  # the arguments passed whole may change (a scalar), the cut ones are the same
+                cut[i] = x
+            a, b = self.ranges[j]
+            self.launches.launch(kernel, b - a, cut)
 
         if kernel not in self._loaded:
-            for r in self.ranges:
-                run(r)
+            for j in range(len(self.ranges)):
+                run(j)
             self._loaded.add(kernel)
             return
-        others = [_pool(len(self.ranges) - 1).submit(run, r) for r in self.ranges[1:]]
-        run(self.ranges[0])
+        others = [_pool(len(self.ranges) - 1).submit(run, j) for j in range(1, len(self.ranges))]
+        run(0)
         for f in others:
             f.result()

@@ -126,6 +126,7 @@ class FullSpaceSolver:
         # (`_StepProblem.chord_direction`)
         self.factored: tuple[float, bool] | None = None
         self.elements = ElementRanges(model.tets.shape[0], d, thread_budget())
+        self.launches = self.elements.launches  # every kernel launch, recorded once (`solvers.warp_runtime.Relaunches`)
         self.info = {"linear_solver": linear, "assembly_threads": self.elements.threads}
         arr = lambda a, dt: wp.array(np.ascontiguousarray(a), dtype=dt, device=d)  # noqa: E731
         self.tets = arr(model.tets.astype(np.int32), wp.vec4i)
@@ -194,7 +195,7 @@ class FullSpaceSolver:
             self.factoriser.factorize(self.values.numpy())
             self.factored = problem
             return self.factoriser.solve(-self.grad.numpy().ravel()).reshape(-1, 3), 0
-        wp.launch(_negate_kernel, self.model.n, device=self.device, inputs=[self.grad, self.rhs])
+        self.launches.launch(_negate_kernel, self.model.n, [self.grad, self.rhs])
         self.dx.zero_()
         M = wpl.preconditioner(self.A, "block_jacobi_direct")
         iters, _, _ = wpl.cg(self.A, self.rhs, self.dx, tol=self.settings.cg_tol, maxiter=10 * self.model.n * 3,

@@ -9,7 +9,8 @@ own buffers, filled by `begin_step` from the step's constants (`StepData`): the 
 kernel that takes `fn` (friction), the per-tet array of a density's `TetKernels.at_bar` kernel (viscosity's Green
 strain at x_bar). The solver's arrays x_hat, x_lag and x_bar hold the step's positions. A kernel gets its
 arguments by name (`solvers.warp_runtime.kernel_inputs`): the solver's arrays (`solver_arrays`), the launch's x, h
-and mode, the launcher's own buffers and the term's `kernel_parameters`.
+and mode, the launcher's own buffers and the term's `kernel_parameters`; it is launched through the solver's
+`launches` (`solvers.warp_runtime.Relaunches`: recorded at its first launch, relaunched after).
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ class VertexLauncher(Launcher):
 
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s = self.solver
-        wp.launch(K.inertia_gravity_kernel, s.model.n, device=s.device, inputs=[
+        s.launches.launch(K.inertia_gravity_kernel, s.model.n, [
             x, self.target, s.mass, 1.0 / self.term.tau2(s.model, h, inertia), self.acceleration, s.diag, s.grad,
             s.values, s.energy_buf, mode])
 
@@ -112,8 +113,8 @@ class DensityLauncher(Launcher):
     def begin_step(self, step: StepData) -> None:
         if self.at_bar is not None:
             s = self.solver
-            wp.launch(self.at_bar, s.model.tets.shape[0], device=s.device,
-                      inputs=kernel_inputs(self.at_bar, {**self.arrays, "x": s.x_bar}, self.term.name))
+            s.launches.launch(self.at_bar, s.model.tets.shape[0],
+                              kernel_inputs(self.at_bar, {**self.arrays, "x": s.x_bar}, self.term.name))
 
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         if self.term.rate and not inertia:
@@ -122,9 +123,9 @@ class DensityLauncher(Launcher):
         values = {**self.arrays, **self.term.kernel_parameters(m, h), "x": x}
         ins = lambda kernel: kernel_inputs(kernel, values, self.term.name)  # noqa: E731
         if mode == 0:
-            wp.launch(self.energy, m.tets.shape[0], device=s.device, inputs=ins(self.energy))
+            s.launches.launch(self.energy, m.tets.shape[0], ins(self.energy))
             return
-        wp.launch(self.gradient, m.tets.shape[0], device=s.device, inputs=ins(self.gradient))
+        s.launches.launch(self.gradient, m.tets.shape[0], ins(self.gradient))
         if not hessian:
             return
         if not self.term.kernels.hessian_assigns:
@@ -132,8 +133,7 @@ class DensityLauncher(Launcher):
         labels = [arg.label for arg in self.hessian.adj.args]
         s.elements.launch(self.hessian, ins(self.hessian),
                           {i: self.per_tet[label] for i, label in enumerate(labels) if label in self.per_tet})
-        wp.launch(K.scatter_blocks_kernel, s.elem_blocks.shape[0], device=s.device,
-                  inputs=[s.elem_blocks, s.blockmap, s.values])
+        s.launches.launch(K.scatter_blocks_kernel, s.elem_blocks.shape[0], [s.elem_blocks, s.blockmap, s.values])
 
 
 class PointLauncher(Launcher):
@@ -154,8 +154,8 @@ class PointLauncher(Launcher):
 
     def launch(self, x: wp.array, h: float, mode: int, inertia: bool, hessian: bool = True) -> None:
         s = self.solver
-        wp.launch(self.kernel, s.model.points.size, device=s.device,
-                  inputs=kernel_inputs(self.kernel, {**self.values, "x": x, "h": h, "mode": mode}, self.term.name))
+        s.launches.launch(self.kernel, s.model.points.size,
+                          kernel_inputs(self.kernel, {**self.values, "x": x, "h": h, "mode": mode}, self.term.name))
 
 
 class ReferenceLauncher(Launcher):
